@@ -1,0 +1,125 @@
+"""Many grid-world episodes stepped in lock-step with numpy: the engine behind dataset
+synthesis, evaluation and the gymnasium wrapper.
+
+Time t counts the agent's moves. Every action counts one move (a stay, and a random valid
+move that replaces an off-map choice, too). A target is recovered when the agent stands on
+its cell at the same time. An episode ends when all targets are found or when moves exceed
+t_e (a failed episode records t_e + 1 moves).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .actions import DELTAS, valid_mask
+from .config import GridConfig
+from .episodes import Episodes
+from .observations import spatial_map, target_occupancy, views
+
+
+class BatchGridWorld:
+    def __init__(self, episodes: Episodes, seed: int = 0) -> None:
+        cfg: GridConfig = episodes.cfg
+        self.cfg, self.episodes = cfg, episodes
+        n, r, w, h = len(episodes), cfg.n_targets, cfg.width, cfg.height
+        self.n = n
+        self._rows = np.arange(n)
+        #: the stream that replaces off-map actions; separate from the world's stream
+        self.rng = np.random.default_rng([seed, 0xAC7])
+        self.agent = episodes.agent.astype(np.int64).copy()
+        self.t = np.zeros(n, dtype=np.int64)
+        self.found = np.zeros((n, r), dtype=bool)
+        self.find_moves = np.full((n, r), -1, dtype=np.int64)
+        self.visited = np.zeros((n, h, w), dtype=bool)
+        self.visited[self._rows, self.agent[:, 1], self.agent[:, 0]] = True
+        self.met = np.zeros((n, h, w), dtype=bool)
+        self.trail = np.zeros((n, h, w), dtype=np.float32)
+        self.recoveries = np.zeros((n, h, w), dtype=np.float32)
+        if cfg.map_variant == "spatiotemporal":
+            self.trail[self._rows, self.agent[:, 1], self.agent[:, 0]] = cfg.trail_value
+        self.done = np.zeros(n, dtype=bool)
+        self.replaced = np.zeros(n, dtype=np.int64)
+        self._history: list[np.ndarray] = [self.agent.astype(np.int16)]
+        self._check_start()
+
+    def _check_start(self) -> None:
+        on = np.all(self.targets() == self.agent[:, None, :], axis=-1)
+        if on.any():
+            raise ValueError("an episode starts with the agent on a target; placement is broken")
+
+    @property
+    def n_actions(self) -> int:
+        return self.cfg.n_actions
+
+    def targets(self) -> np.ndarray:
+        """Current target cells (n, R, 2). Truth: only solvers, the oracle and scorers read it."""
+        return self.episodes.targets_at(self.t)
+
+    def valid_actions(self) -> np.ndarray:
+        return valid_mask(self.agent, self.cfg.width, self.cfg.height, self.n_actions)
+
+    def observe(self) -> tuple[np.ndarray, np.ndarray]:
+        """(views (n, 3, 3, 3) uint8, maps (n, C, h, w) float32) for every episode."""
+        cfg = self.cfg
+        occ = target_occupancy(self.targets(), cfg.width, cfg.height)
+        v = views(self.agent, occ)
+        if cfg.map_variant == "spatiotemporal":
+            m = np.stack([self.trail, self.recoveries], axis=1)
+        else:
+            m = spatial_map(self.agent, self.visited, self.met if cfg.map_variant == "memory" else None)
+        return v, m
+
+    def step(self, actions: np.ndarray) -> np.ndarray:
+        """Apply one action per episode (ignored where done). Returns targets found (n,)."""
+        a = np.asarray(actions, dtype=np.int64).copy()
+        if a.shape != (self.n,):
+            raise ValueError(f"expected {self.n} actions, got shape {a.shape}")
+        if (a < 0).any() or (a >= self.n_actions).any():
+            raise ValueError(f"actions must be in 0..{self.n_actions - 1} for this config")
+        active = ~self.done
+        valid = self.valid_actions()
+        bad = active & ~valid[self._rows, a]
+        if bad.any():
+            keys = self.rng.random((int(bad.sum()), self.n_actions))
+            keys[~valid[bad]] = -1.0
+            a[bad] = keys.argmax(axis=1)
+            self.replaced[bad] += 1
+        rows = self._rows[active]
+        self.agent[active] += DELTAS[a[active]]
+        self.t[active] += 1
+        ay, ax = self.agent[rows, 1], self.agent[rows, 0]
+        self.visited[rows, ay, ax] = True
+        if self.cfg.map_variant == "spatiotemporal":
+            for grid in (self.trail, self.recoveries):
+                g = grid[rows]
+                np.subtract(g, 1.0, out=g, where=g > 0)
+                grid[rows] = g
+            self.trail[rows, ay, ax] = self.cfg.trail_value
+        hits = np.all(self.targets() == self.agent[:, None, :], axis=-1) & ~self.found
+        hits &= active[:, None]
+        newly = hits.sum(axis=1)
+        if newly.any():
+            self.found |= hits
+            self.find_moves[hits] = np.broadcast_to(self.t[:, None], hits.shape)[hits]
+            got = newly > 0
+            self.met[self._rows[got], self.agent[got, 1], self.agent[got, 0]] = True
+            self.recoveries[self._rows[got], self.agent[got, 1], self.agent[got, 0]] = self.cfg.trail_value
+        self.done |= self.found.all(axis=1) | (self.t > self.cfg.t_e)
+        self._history.append(self.agent.astype(np.int16))
+        return newly
+
+    def run(self, act, max_steps: int | None = None) -> None:
+        """Step until every episode is done; `act(world) -> (n,) actions`."""
+        limit = self.cfg.t_e + 1 if max_steps is None else max_steps
+        for _ in range(limit):
+            if self.done.all():
+                break
+            self.step(act(self))
+
+    def trajectories(self) -> np.ndarray:
+        """(n, steps + 1, 2) agent cells over time (frozen once an episode is done)."""
+        return np.stack(self._history, axis=1)
+
+    @property
+    def success(self) -> np.ndarray:
+        return self.found.all(axis=1)

@@ -1,0 +1,57 @@
+"""Episode start configurations, drawn in bulk so that every policy and every solver sees
+exactly the same episodes for a given seed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import GridConfig
+from .motion import target_paths
+from .placement import place
+
+
+@dataclass(frozen=True)
+class Episodes:
+    """n episodes. Cells are (x, y) int64. `paths[:, t]` holds target cells at time t
+    (after t agent moves), t = 0 .. t_e + 1; for static targets it is None."""
+
+    cfg: GridConfig
+    agent: np.ndarray  # (n, 2)
+    targets: np.ndarray  # (n, R, 2) at t = 0
+    paths: np.ndarray | None  # (n, t_e + 2, R, 2) or None
+    seed: int | None = None
+
+    def __len__(self) -> int:
+        return int(self.agent.shape[0])
+
+    def targets_at(self, t: np.ndarray | int) -> np.ndarray:
+        """Target cells at time t per episode: (n, R, 2). t: scalar or (n,) int."""
+        if self.paths is None:
+            return self.targets
+        t = np.minimum(np.broadcast_to(np.asarray(t), (len(self),)), self.paths.shape[1] - 1)
+        return self.paths[np.arange(len(self)), t]
+
+    def subset(self, idx: np.ndarray | slice) -> Episodes:
+        return Episodes(
+            self.cfg,
+            self.agent[idx],
+            self.targets[idx],
+            None if self.paths is None else self.paths[idx],
+            self.seed,
+        )
+
+
+def world_rng(seed: int) -> np.random.Generator:
+    """The stream that draws the world (placement and target motion) for a seed."""
+    return np.random.default_rng([seed, 0x57A7E])
+
+
+def sample_episodes(cfg: GridConfig, n: int, seed: int) -> Episodes:
+    if n < 1:
+        raise ValueError(f"need at least one episode (got {n})")
+    rng = world_rng(seed)
+    agent, targets = place(cfg, rng, n)
+    paths = target_paths(cfg, rng, targets) if cfg.moving else None
+    return Episodes(cfg, agent, targets, paths, seed)
