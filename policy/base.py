@@ -1,0 +1,58 @@
+"""The one interface every decision maker implements, learned or not.
+
+A policy decides for a batch of episodes at once (the evaluation harness and the dataset
+synthesis step many episodes in lock-step). It sees only what a real agent would see: the
+view I, the map M, its own position and which moves stay on the map. Solvers and the oracle
+additionally get the episodes' truth in `reset` and say so with `needs_truth = True`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.gridworld import BatchGridWorld, Episodes, GridConfig
+
+
+@dataclass(frozen=True)
+class Observation:
+    views: np.ndarray  # (n, 3, 3, 3) uint8 grid view, or (n, 3, H, W) uint8 rendered frame
+    maps: np.ndarray  # (n, C, h, w) float32 visitation map M
+    positions: np.ndarray  # (n, 2) agent cells (x, y)
+    valid: np.ndarray  # (n, A) bool: actions that stay on the map
+    t: np.ndarray  # (n,) moves made so far
+    active: np.ndarray  # (n,) bool: episodes still running (act() may ignore the others)
+
+
+def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:
+    """Observation of every episode of a world; `views` replaces I (e.g. rendered frames)."""
+    v, m = world.observe()
+    return Observation(
+        views=v if views is None else views,
+        maps=m,
+        positions=world.agent.copy(),
+        valid=world.valid_actions(),
+        t=world.t.copy(),
+        active=~world.done,
+    )
+
+
+class Policy(ABC):
+    #: short name used by the CLI and in result tables
+    name: str = "policy"
+    #: True only for solvers and the oracle: they receive the episodes' truth in reset()
+    needs_truth: bool = False
+
+    @abstractmethod
+    def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
+        """Start n new episodes. Every random choice draws from a stream built from seed."""
+
+    @abstractmethod
+    def act(self, obs: Observation) -> np.ndarray:
+        """(n,) int actions in 0 .. cfg.n_actions - 1; off-map choices are replaced by the world."""
+
+    def loops(self) -> np.ndarray | None:
+        """(n,) loops detected so far, for policies that run loop detection; else None."""
+        return None
