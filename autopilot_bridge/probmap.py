@@ -1,0 +1,82 @@
+"""The probabilistic visitation map: the paper's future work (Section VII).
+
+With GPS the UAV never knows its cell for sure. Each decision step spreads the visit over the
+cells the position posterior covers: P(cell visited) = 1 - prod_steps (1 - P(in cell at step)).
+The map the network reads is the expectation of the crisp encoding (visited 1, agent 10, met
+target 5), so a network trained on crisp maps consumes it unchanged, and a certain position
+reproduces the crisp map exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import ndtr
+
+from sim.gridworld import DEFAULT_CELL_M, ned_to_cell
+from sim.gridworld.observations import AGENT_VALUE, MET_VALUE, VISITED_VALUE
+
+
+def cell_probabilities(
+    mean_ne: np.ndarray, cov_ne: np.ndarray, width: int, height: int, cell_m: float = DEFAULT_CELL_M
+) -> np.ndarray:
+    """(h, w) probability mass of a 2-D Gaussian position posterior in each grid cell.
+
+    Cells are squares of side cell_m centred on their grid point. The covariance is taken
+    along its own principal axes only when they align with the grid; otherwise the mass of
+    each cell is integrated on a sub-grid, which is exact to ~1e-3 for sigma >= 0.1 cell.
+    """
+    mu = ned_to_cell(np.asarray(mean_ne, dtype=float)[:2], cell_m)  # (x, y) fractional
+    j = np.array([[0.0, 1.0], [-1.0, 0.0]]) / cell_m  # (n, e) -> (x, y)
+    cov = j @ np.asarray(cov_ne, dtype=float)[:2, :2] @ j.T
+    if not np.all(np.isfinite(cov)) or np.linalg.eigvalsh(cov).min() < -1e-12:
+        raise ValueError("covariance must be finite and positive semi-definite")
+    sx, sy = np.sqrt(max(cov[0, 0], 1e-12)), np.sqrt(max(cov[1, 1], 1e-12))
+    rho = cov[0, 1] / (sx * sy)
+    if abs(rho) < 1e-3:
+        ex = np.arange(width + 1) - 0.5
+        ey = np.arange(height + 1) - 0.5
+        px = np.diff(ndtr((ex - mu[0]) / sx))
+        py = np.diff(ndtr((ey - mu[1]) / sy))
+        return np.outer(py, px)
+    k = 8  # sub-samples per cell side
+    off = (np.arange(k) + 0.5) / k - 0.5
+    gx = (np.arange(width)[:, None] + off).ravel()
+    gy = (np.arange(height)[:, None] + off).ravel()
+    dx, dy = np.meshgrid(gx - mu[0], gy - mu[1], indexing="xy")
+    inv = np.linalg.inv(cov)
+    q = inv[0, 0] * dx**2 + 2 * inv[0, 1] * dx * dy + inv[1, 1] * dy**2
+    pdf = np.exp(-0.5 * q) / (2 * np.pi * np.sqrt(np.linalg.det(cov))) / k**2
+    return pdf.reshape(height, k, width, k).sum(axis=(1, 3))
+
+
+class ProbabilisticVisitationMap:
+    def __init__(self, width: int, height: int, cell_m: float = DEFAULT_CELL_M) -> None:
+        if width < 1 or height < 1 or cell_m <= 0:
+            raise ValueError("width, height and cell_m must be positive")
+        self.width, self.height, self.cell_m = width, height, cell_m
+        self.visited = np.zeros((height, width))
+        self.met = np.zeros((height, width))
+        self.current = np.zeros((height, width))
+
+    def visit(self, mean_ne: np.ndarray, cov_ne: np.ndarray) -> np.ndarray:
+        """One decision step at the posterior (mean, cov). Returns P(in cell) now."""
+        p = cell_probabilities(mean_ne, cov_ne, self.width, self.height, self.cell_m)
+        self.visited = 1.0 - (1.0 - self.visited) * (1.0 - p)
+        self.current = p
+        return p
+
+    def mark_target(self) -> None:
+        """A target was detected under the UAV: spread the mark like the visit."""
+        self.met = 1.0 - (1.0 - self.met) * (1.0 - self.current)
+
+    def most_likely_cell(self) -> tuple[int, int]:
+        y, x = np.unravel_index(int(np.argmax(self.current)), self.current.shape)
+        return int(x), int(y)
+
+    def expected_map(self, memory: bool = False) -> np.ndarray:
+        """(1, h, w) float32: the expectation of the crisp spatial (or +M) encoding."""
+        base = self.visited * VISITED_VALUE
+        if memory:
+            base = base + self.met * (MET_VALUE - VISITED_VALUE)
+        m = (1.0 - self.current) * base + self.current * AGENT_VALUE
+        return m[None].astype(np.float32)

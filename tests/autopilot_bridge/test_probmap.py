@@ -1,0 +1,48 @@
+import numpy as np
+import pytest
+
+from autopilot_bridge import ProbabilisticVisitationMap, cell_probabilities
+from sim.gridworld import BatchGridWorld, GridConfig, cell_to_ned, sample_episodes
+
+
+def test_mass_sums_to_one_inside_and_peaks_at_the_mean() -> None:
+    ne = cell_to_ned((4, 6))
+    p = cell_probabilities(ne, np.eye(2) * 0.8**2, 10, 10)
+    assert p.shape == (10, 10)
+    assert abs(p.sum() - 1.0) < 1e-6
+    assert np.unravel_index(p.argmax(), p.shape) == (6, 4)
+
+
+def test_correlated_covariance_matches_the_axis_aligned_path() -> None:
+    ne = cell_to_ned((5.2, 4.7))
+    a = cell_probabilities(ne, np.diag([0.9, 0.5]), 10, 10)
+    b = cell_probabilities(ne, np.array([[0.9, 1e-9], [1e-9, 0.5]]) + np.diag([0, 0]), 10, 10)
+    c = cell_probabilities(ne, np.array([[0.9, 0.3], [0.3, 0.5]]), 10, 10)
+    assert np.allclose(a, b)
+    assert abs(c.sum() - 1.0) < 2e-3
+    with pytest.raises(ValueError):
+        cell_probabilities(ne, np.array([[1.0, 2.0], [2.0, 1.0]]), 10, 10)
+
+
+def test_certain_positions_reproduce_the_crisp_map() -> None:
+    cfg = GridConfig(map_variant="spatial")
+    world = BatchGridWorld(sample_episodes(cfg, 1, seed=2), seed=2)
+    pmap = ProbabilisticVisitationMap(10, 10)
+    rng = np.random.default_rng(0)
+    pmap.visit(cell_to_ned(world.agent[0]), np.eye(2) * 1e-6)
+    for _ in range(30):
+        world.step(rng.integers(0, 4, 1))
+        pmap.visit(cell_to_ned(world.agent[0]), np.eye(2) * 1e-6)
+    _, crisp = world.observe()
+    assert np.allclose(pmap.expected_map(), crisp[0], atol=1e-6)
+    assert pmap.most_likely_cell() == tuple(world.agent[0])
+
+
+def test_uncertain_visits_are_soft() -> None:
+    pmap = ProbabilisticVisitationMap(10, 10)
+    pmap.visit(cell_to_ned((5, 5)), np.eye(2) * 1.5**2)
+    m = pmap.expected_map(memory=True)[0]
+    assert 0 < pmap.visited[5, 4] < 1 and 0 < pmap.current[5, 4] < pmap.current[5, 5] < 1
+    assert 0 < m[5, 4] < m[5, 5] < 10
+    pmap.mark_target()
+    assert pmap.expected_map(memory=True)[0, 5, 4] > m[5, 4]
