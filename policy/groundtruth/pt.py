@@ -1,0 +1,62 @@
+"""Optimal target order for static targets (PT) by Held-Karp dynamic programming.
+
+The paper enumerates all |R|! orders; Held-Karp visits 2^R * R^2 states instead and is
+vectorised over episodes, so 20k episodes of 5 targets solve in well under a second.
+Costs are Manhattan distances (grid moves). Ties between optimal orders are broken at random
+by adding noise below 1 / (R + 1) per leg: the sum of noises is < 1, so the noisy argmin is
+always one of the exactly optimal orders.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .legs import manhattan
+
+
+def held_karp(
+    start: np.ndarray, targets: np.ndarray, rng: np.random.Generator | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """start (n, 2), targets (n, R, 2) -> (lengths (n,), orders (n, R))."""
+    n, r = targets.shape[:2]
+    d0 = manhattan(start[:, None, :], targets).astype(np.float64)  # (n, R)
+    dd = manhattan(targets[:, :, None, :], targets[:, None, :, :]).astype(np.float64)  # (n, R, R)
+    if rng is not None:
+        eps = 1.0 / (r + 1)
+        d0 = d0 + rng.random(d0.shape) * eps
+        dd = dd + rng.random(dd.shape) * eps
+    full = (1 << r) - 1
+    dp = np.full((n, 1 << r, r), np.inf)
+    parent = np.full((n, 1 << r, r), -1, dtype=np.int8)
+    for j in range(r):
+        dp[:, 1 << j, j] = d0[:, j]
+    for mask in range(1, full + 1):
+        members = [i for i in range(r) if mask >> i & 1]
+        if len(members) < 2:
+            continue
+        for j in members:
+            prev = mask ^ (1 << j)
+            cand = dp[:, prev, :] + dd[:, :, j]  # (n, R) via last target i
+            outside = [i for i in range(r) if not prev >> i & 1]
+            cand[:, outside] = np.inf
+            best = cand.argmin(axis=1)
+            dp[:, mask, j] = cand[np.arange(n), best]
+            parent[:, mask, j] = best
+    last = dp[:, full, :].argmin(axis=1)
+    orders = np.empty((n, r), dtype=np.int64)
+    mask = np.full(n, full)
+    rows = np.arange(n)
+    cur = last
+    for k in range(r - 1, -1, -1):
+        orders[:, k] = cur
+        prev = parent[rows, mask, cur]
+        mask = mask ^ (1 << cur)
+        cur = prev.astype(np.int64)
+    return path_lengths(start, targets, orders), orders
+
+
+def path_lengths(start: np.ndarray, targets: np.ndarray, orders: np.ndarray) -> np.ndarray:
+    """Integer length of visiting targets in the given orders (n, R)."""
+    seq = np.take_along_axis(targets, orders[..., None], axis=1)  # (n, R, 2)
+    pts = np.concatenate([start[:, None, :], seq], axis=1)
+    return manhattan(pts[:, 1:], pts[:, :-1]).sum(axis=1)
