@@ -22,8 +22,9 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("out/demo"), help="Where the report goes."),
     ) -> None:
         """Evaluate the built-in policies on the base case and write a report."""
-        from policy.evaluation import run_eval
         from policy.baselines.registry import known_policies
+        from policy.evaluation import run_eval
+
         from sim.gridworld import GridConfig
 
         names = [p for p in DEFAULT_POLICIES if p in known_policies()]

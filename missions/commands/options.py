@@ -1,0 +1,52 @@
+"""CLI options shared by several commands, and the one place the CLI builds a GridConfig."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+import typer
+
+from sim.gridworld import ConfigError, GridConfig
+
+
+class Dist(StrEnum):
+    random = "random"
+    fixed = "fixed"
+    equidistant = "equidistant"
+    gaussian = "gaussian"
+
+
+class Motion(StrEnum):
+    static = "static"
+    random_walk = "random_walk"
+    herd = "herd"
+
+
+class MapKind(StrEnum):
+    auto = "auto"
+    spatial = "spatial"
+    memory = "memory"
+    spatiotemporal = "spatiotemporal"
+
+
+DIST = typer.Option(Dist.random, "--distribution", help="Target placement P.")
+MOTION = typer.Option(Motion.static, "--motion", help="Target motion.")
+MAP = typer.Option(MapKind.auto, "--map", help="Map M variant (auto: spatial, or spatiotemporal for moving targets).")
+WIDTH = typer.Option(10, "--width", help="Grid width (cells).")
+HEIGHT = typer.Option(10, "--height", help="Grid height (cells).")
+TARGETS = typer.Option(5, "--targets", help="Number of targets |R|.")
+
+
+def grid_config(
+    distribution: Dist, motion: Motion, map_kind: MapKind, width: int = 10, height: int = 10, targets: int = 5
+) -> GridConfig:
+    mp = map_kind.value
+    if mp == "auto":
+        mp = "spatial" if motion is Motion.static else "spatiotemporal"
+    try:
+        return GridConfig(
+            width=width, height=height, n_targets=targets, distribution=distribution.value,
+            motion=motion.value, map_variant=mp,
+        )
+    except ConfigError as e:
+        raise typer.BadParameter(str(e)) from e

@@ -1,0 +1,153 @@
+"""On-disk datasets of (I, M, a) samples: compressed .npz shards plus a meta.json written
+last. A reader trusts nothing: every shard is checked against the sha256 and the shapes the
+meta records, and any mismatch is a DatasetError that names the file."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from provenance import atomic_write_bytes, atomic_write_json
+
+FORMAT = "uavsearch-dataset/1"
+META = "meta.json"
+KEYS = ("views", "maps", "actions", "episode")
+
+
+class DatasetError(ValueError):
+    """A dataset that cannot be used as it is; the message says which file and why."""
+
+
+class ShardWriter:
+    """Buffers samples and writes a shard every `shard_size` samples."""
+
+    def __init__(self, out: Path, shard_size: int = 100_000, overwrite: bool = False) -> None:
+        if shard_size < 1:
+            raise ValueError("shard_size must be >= 1")
+        self.out = Path(out)
+        if (self.out / META).exists() and not overwrite:
+            raise FileExistsError(f"{self.out} already holds a dataset; pass overwrite to replace it")
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.shard_size = shard_size
+        self._buf: dict[str, list[np.ndarray]] = {k: [] for k in KEYS}
+        self._n = 0
+        self.shards: list[dict[str, Any]] = []
+
+    def add(self, views: np.ndarray, maps: np.ndarray, actions: np.ndarray, episode: np.ndarray) -> None:
+        for k, v in zip(KEYS, (views, maps, actions, episode), strict=True):
+            self._buf[k].append(v)
+        self._n += len(actions)
+        while self._n >= self.shard_size:
+            self._flush(self.shard_size)
+
+    def _flush(self, count: int) -> None:
+        arrays = {k: np.concatenate(v) for k, v in self._buf.items()}
+        head = {k: a[:count] for k, a in arrays.items()}
+        self._buf = {k: [a[count:]] for k, a in arrays.items()}
+        self._n -= count
+        bio = io.BytesIO()
+        np.savez_compressed(bio, **head)
+        data = bio.getvalue()
+        name = f"shard-{len(self.shards):05d}.npz"
+        atomic_write_bytes(self.out / name, data)
+        self.shards.append({"file": name, "samples": count, "sha256": hashlib.sha256(data).hexdigest()})
+
+    def close(self, meta: dict[str, Any]) -> Path:
+        if self._n:
+            self._flush(self._n)
+        if not self.shards:
+            raise DatasetError("no samples were written")
+        first = np.load(self.out / self.shards[0]["file"])
+        record = {
+            "format": FORMAT,
+            **meta,
+            "samples": int(sum(s["samples"] for s in self.shards)),
+            "view_shape": list(first["views"].shape[1:]),
+            "map_shape": list(first["maps"].shape[1:]),
+            "shards": self.shards,
+        }
+        atomic_write_json(self.out / META, record)
+        return self.out
+
+
+class Dataset:
+    def __init__(self, path: Path, meta: dict[str, Any]) -> None:
+        self.path, self.meta = path, meta
+
+    def __len__(self) -> int:
+        return int(self.meta["samples"])
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.meta["config"].get("n_actions") or (5 if self.meta["config"]["motion"] != "static" else 4))
+
+    def shard(self, i: int) -> dict[str, np.ndarray]:
+        info = self.meta["shards"][i]
+        f = self.path / info["file"]
+        try:
+            data = f.read_bytes()
+        except FileNotFoundError:
+            raise DatasetError(f"{f}: shard listed in {META} is missing") from None
+        if hashlib.sha256(data).hexdigest() != info["sha256"]:
+            raise DatasetError(f"{f}: checksum mismatch (corrupt or replaced shard)")
+        try:
+            with np.load(io.BytesIO(data)) as z:
+                arrays = {k: z[k] for k in KEYS}
+        except (zipfile.BadZipFile, KeyError, ValueError, OSError, EOFError) as e:
+            raise DatasetError(f"{f}: unreadable shard ({e})") from e
+        n = info["samples"]
+        if any(len(a) != n for a in arrays.values()):
+            raise DatasetError(f"{f}: holds arrays of different lengths, meta says {n}")
+        if list(arrays["views"].shape[1:]) != self.meta["view_shape"] or list(
+            arrays["maps"].shape[1:]
+        ) != self.meta["map_shape"]:
+            raise DatasetError(f"{f}: sample shapes differ from {META}")
+        return arrays
+
+    def load(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All samples in memory: (views uint8, maps uint8, actions int64)."""
+        parts = [self.shard(i) for i in range(len(self.meta["shards"]))]
+        return (
+            np.concatenate([p["views"] for p in parts]),
+            np.concatenate([p["maps"] for p in parts]),
+            np.concatenate([p["actions"] for p in parts]).astype(np.int64),
+        )
+
+    def iter_batches(
+        self, batch_size: int, shuffle: bool = True, seed: int = 0
+    ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Stream batches shard by shard (shard order and samples shuffled when asked)."""
+        rng = np.random.default_rng(seed)
+        order = np.arange(len(self.meta["shards"]))
+        if shuffle:
+            rng.shuffle(order)
+        for i in order:
+            s = self.shard(int(i))
+            idx = rng.permutation(len(s["actions"])) if shuffle else np.arange(len(s["actions"]))
+            for b in range(0, len(idx), batch_size):
+                j = idx[b : b + batch_size]
+                yield s["views"][j], s["maps"][j], s["actions"][j].astype(np.int64)
+
+
+def open_dataset(path: str | Path) -> Dataset:
+    path = Path(path)
+    meta_file = path / META
+    if not meta_file.exists():
+        raise DatasetError(f"{path}: no {META} (not a dataset, or its synthesis did not finish)")
+    try:
+        meta = json.loads(meta_file.read_text())
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{meta_file}: not valid JSON ({e})") from e
+    if meta.get("format") != FORMAT:
+        raise DatasetError(f"{meta_file}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    for key in ("config", "samples", "shards", "view_shape", "map_shape"):
+        if key not in meta:
+            raise DatasetError(f"{meta_file}: missing field {key!r}")
+    return Dataset(path, meta)
