@@ -56,3 +56,10 @@ class Policy(ABC):
     def loops(self) -> np.ndarray | None:
         """(n,) loops detected so far, for policies that run loop detection; else None."""
         return None
+
+
+def random_valid(valid: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A uniformly random valid action per row of valid (m, A) bool."""
+    keys = rng.random(valid.shape)
+    keys[~valid] = -1.0
+    return keys.argmax(axis=1)

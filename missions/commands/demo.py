@@ -24,7 +24,6 @@ def register(app: typer.Typer) -> None:
         """Evaluate the built-in policies on the base case and write a report."""
         from policy.baselines.registry import known_policies
         from policy.evaluation import run_eval
-
         from sim.gridworld import GridConfig
 
         names = [p for p in DEFAULT_POLICIES if p in known_policies()]

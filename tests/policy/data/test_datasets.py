@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from policy.data import DatasetError, open_dataset, synthesize
+from policy.data.synth import chunk_seed
 from policy.groundtruth import optimal_lengths
 from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
-from policy.data.synth import chunk_seed
 
 
 def test_round_trip_and_samples_are_the_optimal_decisions(tmp_path: Path) -> None:

@@ -1,0 +1,47 @@
+"""`uavsearch eval`: Table I's columns for any policies on shared test episodes."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import typer
+
+from .options import DIST, HEIGHT, MAP, MOTION, TARGETS, WIDTH, Dist, MapKind, Motion, grid_config
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("eval")
+    def eval_(
+        policy: list[str] = typer.Option(["ns"], "--policy", "-p", help="Policy name; repeat for several."),
+        episodes: int = typer.Option(1000, "--episodes", min=1),
+        seed: int = typer.Option(0, "--seed"),
+        distribution: Dist = DIST,
+        motion: Motion = MOTION,
+        map_kind: MapKind = MAP,
+        width: int = WIDTH,
+        height: int = HEIGHT,
+        targets: int = TARGETS,
+        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Network checkpoint for dualstream/ssn."),
+        out: Path | None = typer.Option(None, "--out", help="Write results.json, table.md and plots here."),
+        as_json: bool = typer.Option(False, "--json", help="Print only the JSON document on stdout."),
+    ) -> None:
+        """Evaluate policies: every Table I column, mean moves and the ratio to optimal."""
+        from policy.baselines import known_policies
+        from policy.evaluation import run_eval
+
+        known = known_policies()
+        unknown = [p for p in policy if p not in known]
+        if unknown:
+            raise typer.BadParameter(
+                f"unknown policy {', '.join(unknown)}; known: {', '.join(known)}", param_hint="--policy"
+            )
+        cfg = grid_config(distribution, motion, map_kind, width, height, targets)
+        doc = run_eval(policy, cfg, episodes, seed, out, progress=not as_json, checkpoint=checkpoint,
+                       echo=not as_json)
+        if as_json:
+            json.dump(doc, sys.stdout, indent=2, default=float)
+            sys.stdout.write("\n")
+        elif out is not None:
+            typer.echo(f"report: {out.resolve()}")

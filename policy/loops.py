@@ -1,0 +1,106 @@
+"""Loop detection and the voting fallback (paper Section V-B; the authors' code settles the
+details, see ../shared/reference): a wrapper that gives any policy the same protection.
+
+A queue holds the agent's last 40 positions; a loop is declared when a position occurs
+alpha = 3 times in it. The fallback then looks in growing squares (radius 1, 2, ...) around
+the agent for unvisited cells (off-map counts as visited); each votes for the direction of
+its larger offset (both on an exact diagonal), most votes wins, ties at random. While in the
+fallback positions are not queued; once a move lands on an unvisited cell the queue is
+cleared and the wrapped policy takes over again. Each trigger counts one loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.gridworld import Action, Episodes, GridConfig
+
+from .base import Observation, Policy, random_valid
+
+
+def vote(pos: np.ndarray, visited: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Fallback action for each agent: pos (m, 2), visited (m, h, w) bool -> (m,) actions.
+
+    Agents on a fully visited map get Action.N (the caller replaces it with a valid move).
+    """
+    m, h, w = visited.shape
+    out = np.full(m, Action.N, dtype=np.int64)
+    todo = np.arange(m)
+    for r in range(1, max(h, w) + 1):
+        if todo.size == 0:
+            break
+        off = np.arange(-r, r + 1)
+        dx, dy = np.meshgrid(off, off, indexing="xy")  # (2r+1, 2r+1), rows = dy
+        xs = pos[todo, 0, None, None] + dx
+        ys = pos[todo, 1, None, None] + dy
+        inside = (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
+        vis = visited[todo[:, None, None], np.clip(ys, 0, h - 1), np.clip(xs, 0, w - 1)]
+        free = inside & ~vis  # (k, 2r+1, 2r+1)
+        has = free.any(axis=(1, 2))
+        if has.any():
+            f = free[has]
+            ax, ay = np.abs(dx), np.abs(dy)
+            horiz = f & (ax >= ay)
+            vert = f & (ay >= ax)
+            votes = np.stack(
+                [
+                    (vert & (dy < 0)).sum(axis=(1, 2)),  # f: -y
+                    (vert & (dy > 0)).sum(axis=(1, 2)),  # b: +y
+                    (horiz & (dx < 0)).sum(axis=(1, 2)),  # l: -x
+                    (horiz & (dx > 0)).sum(axis=(1, 2)),  # r: +x
+                ],
+                axis=1,
+            ).astype(np.float64)
+            votes += rng.random(votes.shape) * 0.5  # ties at random
+            out[todo[has]] = votes.argmax(axis=1)
+        todo = todo[~has]
+    return out
+
+
+class LoopGuard(Policy):
+    def __init__(self, policy: Policy, alpha: int = 3, window: int = 40) -> None:
+        if alpha < 2 or window < alpha:
+            raise ValueError(f"need 2 <= alpha <= window (got alpha={alpha}, window={window})")
+        self.inner, self.alpha, self.window = policy, alpha, window
+        self.name = policy.name
+        self.needs_truth = policy.needs_truth
+
+    def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
+        self.inner.reset(cfg, n, seed, episodes)
+        self.rng = np.random.default_rng([seed, 0x100F])
+        self.queue = np.full((n, self.window, 2), -1, dtype=np.int64)
+        self.qlen = np.zeros(n, dtype=np.int64)
+        self.visited = np.zeros((n, cfg.height, cfg.width), dtype=bool)
+        self.fallback = np.zeros(n, dtype=bool)
+        self.count = np.zeros(n, dtype=np.int64)
+        self.rows = np.arange(n)
+
+    def loops(self) -> np.ndarray:
+        return self.count.copy()
+
+    def act(self, obs: Observation) -> np.ndarray:
+        a = np.asarray(self.inner.act(obs), dtype=np.int64).copy()
+        act, pos, rows = obs.active, obs.positions, self.rows
+        new_cell = ~self.visited[rows, pos[:, 1], pos[:, 0]]
+        self.visited[rows[act], pos[act, 1], pos[act, 0]] = True
+        # Leaving the fallback: the last move reached an unvisited cell.
+        leave = act & self.fallback & new_cell
+        self.fallback[leave] = False
+        self.qlen[leave] = 0
+        # Queue the position (ring buffer) for episodes under the wrapped policy.
+        q = act & ~self.fallback
+        slot = self.qlen[q] % self.window
+        self.queue[rows[q], slot] = pos[q]
+        self.qlen[q] += 1
+        filled = np.arange(self.window)[None, :] < np.minimum(self.qlen, self.window)[:, None]
+        same = np.all(self.queue == pos[:, None, :], axis=-1) & filled
+        trig = q & (same.sum(axis=1) >= self.alpha)
+        self.count[trig] += 1
+        self.fallback |= trig
+        fb = act & self.fallback
+        if fb.any():
+            a[fb] = vote(pos[fb], self.visited[fb], self.rng)
+            stuck = fb & (a == Action.N)  # nothing left unvisited: any valid move
+            if stuck.any():
+                a[stuck] = random_valid(obs.valid[stuck, :4], self.rng)
+        return a

@@ -1,0 +1,42 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from missions.cli import app
+
+runner = CliRunner()
+
+
+def _text(output: str) -> str:
+    """Rich boxes wrap messages; compare on the words."""
+    return " ".join(output.replace("│", " ").split())
+
+
+def test_eval_json_is_machine_readable() -> None:
+    res = subprocess.run(
+        [sys.executable, "-m", "missions", "eval", "--policy", "oracle", "--episodes", "300", "--seed", "5", "--json"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert abs(doc["policies"]["oracle"]["mean_moves"] - 20.93) < 1.0
+
+
+def test_eval_rejects_unknown_policy_and_bad_config() -> None:
+    r = runner.invoke(app, ["eval", "--policy", "bogus"])
+    assert r.exit_code != 0 and "unknown policy" in _text(r.output)
+    r = runner.invoke(app, ["eval", "--targets", "0"])
+    assert r.exit_code != 0 and "n_targets" in _text(r.output)
+
+
+def test_synth_then_refuses_to_overwrite(tmp_path: Path) -> None:
+    r = runner.invoke(app, ["synth", "--out", str(tmp_path / "ds"), "--episodes", "20"])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "ds" / "meta.json").exists()
+    r = runner.invoke(app, ["synth", "--out", str(tmp_path / "ds"), "--episodes", "20"])
+    assert r.exit_code != 0 and "already holds a dataset" in _text(r.output)
+    r = runner.invoke(app, ["synth", "--out", str(tmp_path / "cu"), "--episodes", "5", "--method", "cu", "--motion", "herd"])
+    assert r.exit_code != 0
