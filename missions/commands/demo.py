@@ -24,11 +24,12 @@ def register(app: typer.Typer) -> None:
         """Evaluate the built-in policies on the base case and write a report."""
         from policy.baselines.registry import known_policies
         from policy.evaluation import run_eval
+        from policy.nn import shipped_checkpoint
         from sim.gridworld import GridConfig
 
         names = [p for p in DEFAULT_POLICIES if p in known_policies()]
-        for extra in ("dualstream", "ssn", "drqn"):
-            if extra in known_policies():
-                names.append(extra)
+        for net in ("dualstream", "ssn", "drqn"):  # the learned ones whose checkpoint ships
+            if net in known_policies() and shipped_checkpoint(f"{net}_static_random").exists():
+                names.append(net)
         run_eval(names, GridConfig(), episodes, seed, out)
         typer.echo(f"report: {out.resolve()}")

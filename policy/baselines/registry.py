@@ -48,10 +48,13 @@ def _simple(cls_name: str) -> Factory:
     return make
 
 
-def _dualstream(cfg=None, checkpoint=None, **kw):
-    from ..nn import load_policy
+def _network(default: str) -> Factory:
+    def make(cfg=None, checkpoint=None, **kw):
+        from ..nn import load_policy, shipped_checkpoint
 
-    return load_policy(checkpoint, cfg=cfg, **kw)
+        return load_policy(checkpoint or shipped_checkpoint(default), cfg=cfg, **kw)
+
+    return make
 
 
 register_policy("oracle", _oracle, "optimal PT with full knowledge of the targets (upper bound)")
@@ -60,3 +63,5 @@ register_policy("ns", _simple("NaivePolicy"), "naive solution: visible target, e
 register_policy("frontier", _simple("FrontierPolicy"), "greedy: nearest unvisited cell")
 register_policy("lawnmower", _simple("LawnmowerPolicy"), "boustrophedon sweep from the nearest corner")
 register_policy("random", _simple("RandomPolicy"), "uniformly random valid moves")
+register_policy("dualstream", _network("dualstream_static_random"), "the dual-stream network (shipped checkpoint or --checkpoint)")
+register_policy("ssn", _network("ssn_static_random"), "split-stream baseline network (shipped checkpoint or --checkpoint)")

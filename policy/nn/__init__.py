@@ -1,0 +1,13 @@
+"""The dual-stream network, the SSN baseline, checkpoints, export and batch inference."""
+
+from .checkpoint import CheckpointError, load_model, read_checkpoint, save_checkpoint
+from .config import ARCHS, MODELS, ModelConfig
+from .export import export_torchscript, load_torchscript
+from .infer import NetworkPolicy, load_policy, shipped_checkpoint
+from .models import DualStream, SplitStream, build_model
+
+__all__ = [
+    "ARCHS", "CheckpointError", "DualStream", "MODELS", "ModelConfig", "NetworkPolicy",
+    "SplitStream", "build_model", "export_torchscript", "load_model", "load_policy",
+    "load_torchscript", "read_checkpoint", "save_checkpoint", "shipped_checkpoint",
+]

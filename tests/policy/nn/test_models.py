@@ -1,0 +1,80 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from policy.base import observe
+from policy.nn import (
+    CheckpointError,
+    ModelConfig,
+    NetworkPolicy,
+    build_model,
+    export_torchscript,
+    load_model,
+    load_torchscript,
+    save_checkpoint,
+)
+from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
+
+
+@pytest.mark.parametrize("model", ["dualstream", "ssn"])
+@pytest.mark.parametrize("variant,actions", [("spatial", 4), ("memory", 4), ("spatiotemporal", 5)])
+def test_small_network_shapes_for_every_map_variant(model: str, variant: str, actions: int) -> None:
+    channels = 2 if variant == "spatiotemporal" else 1
+    for view in [(3, 3, 3), (3, 50, 50)]:
+        cfg = ModelConfig(model=model, view_shape=view, map_shape=(channels, 10, 10), n_actions=actions)
+        net = build_model(cfg)
+        v = torch.randint(0, 2, (7, *view), dtype=torch.uint8)
+        m = torch.rand(7, channels, 10, 10) * 10
+        p = net.probabilities(v, m)
+        assert p.shape == (7, actions)
+        assert torch.allclose(p.sum(1), torch.ones(7), atol=1e-5), "softmax output is normalised"
+
+
+def test_paper_architecture_forward_pass_at_50x50_and_on_other_grid_sizes() -> None:
+    net = build_model(ModelConfig(arch="paper", view_shape=(3, 50, 50), map_shape=(1, 10, 10)))
+    assert net(torch.zeros(2, 3, 50, 50, dtype=torch.uint8), torch.zeros(2, 1, 10, 10)).shape == (2, 4)
+    small = build_model(ModelConfig(map_shape=(1, 7, 13)))
+    assert small(torch.zeros(1, 3, 3, 3), torch.zeros(1, 1, 7, 13)).shape == (1, 4)
+
+
+def test_exported_model_gives_the_same_actions(tmp_path: Path) -> None:
+    cfg = ModelConfig(map_shape=(2, 10, 10), n_actions=5, map_scale=50.0)
+    net = build_model(cfg).eval()
+    path = export_torchscript(net, cfg, tmp_path / "policy.ts")
+    ts = load_torchscript(path)
+    grid = GridConfig(motion="herd", distribution="equidistant", map_variant="spatiotemporal")
+    world = BatchGridWorld(sample_episodes(grid, 64, 1), 1)
+    eager, script = NetworkPolicy(net), NetworkPolicy(ts)
+    for p in (eager, script):
+        p.reset(grid, 64, 0)
+    for _ in range(20):
+        obs = observe(world)
+        a, b = eager.act(obs), script.act(obs)
+        assert (a == b).all()
+        world.step(a)
+
+
+def test_checkpoint_round_trip_and_clear_errors(tmp_path: Path) -> None:
+    cfg = ModelConfig()
+    net = build_model(cfg)
+    path = save_checkpoint(tmp_path / "m.pt", net, cfg, seed=3, metrics={"val_acc": 0.5})
+    loaded, doc = load_model(path)
+    assert doc["seed"] == 3 and doc["git_revision"]
+    for a, b in zip(net.state_dict().values(), loaded.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    data = path.read_bytes()
+    (tmp_path / "trunc.pt").write_bytes(data[: len(data) // 2])
+    with pytest.raises(CheckpointError, match="trunc.pt"):
+        load_model(tmp_path / "trunc.pt")
+    (tmp_path / "junk.pt").write_bytes(np.random.default_rng(0).bytes(4096))
+    with pytest.raises(CheckpointError, match="junk.pt"):
+        load_model(tmp_path / "junk.pt")
+    with pytest.raises(CheckpointError, match="no such"):
+        load_model(tmp_path / "absent.pt")
+    with pytest.raises(CheckpointError, match="expected"):
+        load_model(path, expect=ModelConfig(arch="paper"))
+    torch.save({"hello": 1}, tmp_path / "foreign.pt")
+    with pytest.raises(CheckpointError, match="not a uavsearch checkpoint"):
+        load_model(tmp_path / "foreign.pt")
