@@ -1,0 +1,92 @@
+"""The downward camera: 100 deg field of view, 50 x 50 px by default, rendered headless with
+PyBullet's software renderer. Image top is north (f, -y), image right is east (+x).
+
+At 3.5 m the footprint is 2 * 3.5 * tan(50 deg) = 8.3 m: about four 2 m cells, a little more
+than the grid world's 3 x 3 view, as in the paper's Gazebo setup (Section VI-C).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as p
+
+from sim.gridworld import DEFAULT_CELL_M
+
+from .field import Field, cell_to_enu
+from .frames import ned_to_enu
+
+ALTITUDE_M = 3.5
+
+
+class DownCamera:
+    def __init__(self, client: int, width: int = 50, height: int = 50, fov_deg: float = 100.0) -> None:
+        if width < 1 or height < 1 or not 1 < fov_deg < 179:
+            raise ValueError("camera needs a positive size and 1 < fov < 179 degrees")
+        self.cid, self.width, self.height, self.fov = client, width, height, fov_deg
+        self.proj = p.computeProjectionMatrixFOV(fov_deg, width / height, 0.05, 50.0, physicsClientId=client)
+
+    def render_enu(self, eye_enu: np.ndarray) -> np.ndarray:
+        eye = [float(eye_enu[0]), float(eye_enu[1]), float(eye_enu[2])]
+        view = p.computeViewMatrix(eye, [eye[0], eye[1], 0.0], [0, 1, 0], physicsClientId=self.cid)
+        _, _, rgba, _, _ = p.getCameraImage(
+            self.width, self.height, view, self.proj, renderer=p.ER_TINY_RENDERER,
+            shadow=0, flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.cid,
+        )
+        return np.asarray(rgba, dtype=np.uint8).reshape(self.height, self.width, 4)[..., :3].copy()
+
+    def render(self, position_ned: np.ndarray, yaw: float = 0.0) -> np.ndarray:
+        """(H, W, 3) uint8 from a camera just below the airframe at position_ned. North-up
+        (the gimbal keeps the image aligned to the grid, as in the paper's setup)."""
+        eye = ned_to_enu(np.asarray(position_ned, dtype=float))
+        eye[2] = max(eye[2] - 0.06, 0.1)
+        return self.render_enu(eye)
+
+
+@dataclass(frozen=True)
+class WorldState:
+    """What an offline render needs: the grid, its targets and how they look."""
+
+    width: int
+    height: int
+    targets: np.ndarray  # (R, 2) cells, may be fractional
+    headings: np.ndarray | None = None
+    cell_m: float = DEFAULT_CELL_M
+
+
+class ViewRenderer:
+    """A persistent hidden scene for offline rendering of many views (the +S datasets)."""
+
+    def __init__(self, width: int, height: int, n_targets: int, image: int = 50, seed: int = 0,
+                 cell_m: float = DEFAULT_CELL_M) -> None:
+        self.cid = p.connect(p.DIRECT)
+        self.field = Field(self.cid, width, height, n_targets, cell_m, seed)
+        self.camera = DownCamera(self.cid, image, image)
+        self.cell_m = cell_m
+
+    def render_view(self, state: WorldState, cell: np.ndarray) -> np.ndarray:
+        self.field.set_targets(state.targets, state.headings)
+        eye = cell_to_enu(np.asarray(cell, dtype=float), self.cell_m)
+        eye[2] = ALTITUDE_M
+        return self.camera.render_enu(eye)
+
+    def render_views(self, targets: np.ndarray, agents: np.ndarray, width: int, height: int) -> np.ndarray:
+        """targets (n, R, 2), agents (n, 2) -> (n, 3, H, W) uint8 (channels first, for networks)."""
+        out = np.empty((len(agents), 3, self.camera.height, self.camera.width), dtype=np.uint8)
+        for i, (tg, ag) in enumerate(zip(targets, agents, strict=True)):
+            out[i] = self.render_view(WorldState(width, height, tg, cell_m=self.cell_m), ag).transpose(2, 0, 1)
+        return out
+
+    def close(self) -> None:
+        if p.isConnected(self.cid):
+            p.disconnect(self.cid)
+
+
+def render_view(state: WorldState, cell: np.ndarray, image: int = 50, seed: int = 0) -> np.ndarray:
+    """One-off render (opens and closes a scene); use ViewRenderer for many."""
+    r = ViewRenderer(state.width, state.height, len(state.targets), image, seed, state.cell_m)
+    try:
+        return r.render_view(state, cell)
+    finally:
+        r.close()

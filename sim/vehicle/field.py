@@ -1,0 +1,75 @@
+"""The field the UAV searches: a grass plane over the grid (2 m cells) and cattle-like
+targets built from primitives (torso, head, four legs; random heading and coat), placed and
+moved by the grid world's placement and motion models. Visual only: nothing collides."""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as p
+
+from sim.gridworld import DEFAULT_CELL_M, cell_to_ned
+
+from .frames import ned_to_enu
+
+COATS = {
+    "black": (0.08, 0.08, 0.08, 1),
+    "brown": (0.45, 0.26, 0.12, 1),
+    "white": (0.92, 0.90, 0.86, 1),
+    "red": (0.62, 0.22, 0.10, 1),
+}
+GRASS = (0.30, 0.52, 0.18, 1)
+
+
+def _cow_shape(client: int, coat: tuple[float, ...]) -> int:
+    dark = (0.1, 0.08, 0.06, 1)
+    parts = [  # (half extents, offset) in the cow frame: x forward, z up
+        ((0.70, 0.25, 0.25), (0.0, 0.0, 0.95)),  # torso
+        ((0.20, 0.15, 0.15), (0.85, 0.0, 1.10)),  # head
+        ((0.06, 0.06, 0.35), (0.50, 0.16, 0.35)),
+        ((0.06, 0.06, 0.35), (0.50, -0.16, 0.35)),
+        ((0.06, 0.06, 0.35), (-0.50, 0.16, 0.35)),
+        ((0.06, 0.06, 0.35), (-0.50, -0.16, 0.35)),
+    ]
+    return p.createVisualShapeArray(
+        shapeTypes=[p.GEOM_BOX] * len(parts),
+        halfExtents=[list(h) for h, _ in parts],
+        visualFramePositions=[list(o) for _, o in parts],
+        rgbaColors=[list(coat), list(coat)] + [list(dark)] * 4,
+        physicsClientId=client,
+    )
+
+
+def cell_to_enu(cells: np.ndarray, cell_m: float = DEFAULT_CELL_M) -> np.ndarray:
+    ne = cell_to_ned(cells, cell_m)
+    return ned_to_enu(np.concatenate([ne, np.zeros(ne.shape[:-1] + (1,))], axis=-1))
+
+
+class Field:
+    def __init__(self, client: int, width: int, height: int, n_targets: int, cell_m: float = DEFAULT_CELL_M,
+                 seed: int = 0, margin_cells: int = 4) -> None:
+        self.cid, self.w, self.h, self.cell_m = client, width, height, cell_m
+        self.rng = np.random.default_rng([seed, 0xC0A7])
+        # the grass covers the grid plus a margin, so the camera never sees the void
+        half = [(width + 2 * margin_cells) * cell_m / 2, (height + 2 * margin_cells) * cell_m / 2, 0.01]
+        centre = cell_to_enu(np.array([(width - 1) / 2, (height - 1) / 2]), cell_m)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(GRASS), physicsClientId=client)
+        self.ground = p.createMultiBody(0, -1, vis, [centre[0], centre[1], -0.011], physicsClientId=client)
+        names = list(COATS)
+        self.coats = [names[i] for i in self.rng.integers(0, len(names), n_targets)]
+        self.headings = self.rng.uniform(-np.pi, np.pi, n_targets)
+        self.cows = [
+            p.createMultiBody(0, -1, _cow_shape(client, COATS[c]), [0, 0, -50], physicsClientId=client)
+            for c in self.coats
+        ]
+
+    def set_targets(self, cells: np.ndarray, headings: np.ndarray | None = None) -> None:
+        """Place the targets at (fractional) cells; headings in ENU radians."""
+        cells = np.asarray(cells, dtype=float).reshape(-1, 2)
+        if len(cells) != len(self.cows):
+            raise ValueError(f"field has {len(self.cows)} targets, got {len(cells)} cells")
+        if headings is not None:
+            self.headings = np.asarray(headings, dtype=float)
+        pos = cell_to_enu(cells, self.cell_m)
+        for body, xyz, yaw in zip(self.cows, pos, self.headings, strict=True):
+            q = p.getQuaternionFromEuler([0, 0, float(yaw)])
+            p.resetBasePositionAndOrientation(body, [float(xyz[0]), float(xyz[1]), 0.0], q, physicsClientId=self.cid)
