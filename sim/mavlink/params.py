@@ -1,0 +1,52 @@
+"""The parameter store and protocol (PARAM_REQUEST_LIST / _READ / PARAM_SET -> PARAM_VALUE).
+A realistic handful of PX4's parameters with their ranges; all REAL32 on the wire."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass
+class Param:
+    value: float
+    lo: float
+    hi: float
+    doc: str
+
+
+def default_params() -> dict[str, Param]:
+    return {
+        "MIS_TAKEOFF_ALT": Param(3.5, 0.5, 100.0, "default takeoff altitude (m above home)"),
+        "MPC_XY_CRUISE": Param(3.0, 0.5, 15.0, "cruise speed in missions (m/s)"),
+        "MPC_XY_VEL_MAX": Param(5.0, 0.5, 15.0, "maximum horizontal speed (m/s)"),
+        "MPC_Z_VEL_MAX_UP": Param(2.0, 0.5, 5.0, "maximum climb rate (m/s)"),
+        "NAV_ACC_RAD": Param(0.4, 0.05, 10.0, "waypoint acceptance radius (m)"),
+        "RTL_RETURN_ALT": Param(5.0, 1.0, 100.0, "return altitude above home (m)"),
+        "GF_MAX_HOR_DIST": Param(100.0, 1.0, 10000.0, "geofence: max horizontal distance from home (m)"),
+        "GF_MAX_VER_DIST": Param(30.0, 1.0, 1000.0, "geofence: max altitude above home (m)"),
+        "COM_OF_LOSS_T": Param(1.0, 0.1, 60.0, "offboard setpoint timeout (s)"),
+        "SYS_AUTOSTART": Param(4001.0, 0.0, 1e6, "airframe: generic quadrotor x"),
+        "UAVS_CAM_RATE": Param(0.0, 0.0, 30.0, "camera frames streamed per second (0: on request)"),
+    }
+
+
+class ParamStore:
+    def __init__(self) -> None:
+        self.params = default_params()
+        self.names = list(self.params)
+
+    def __getitem__(self, name: str) -> float:
+        return self.params[name].value
+
+    def set(self, name: str, value: float) -> tuple[bool, str]:
+        p = self.params.get(name)
+        if p is None:
+            return False, f"unknown parameter {name}"
+        if not math.isfinite(value) or not p.lo <= value <= p.hi:
+            return False, f"{name}={value} outside [{p.lo}, {p.hi}]"
+        p.value = float(value)
+        return True, ""
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)

@@ -1,0 +1,181 @@
+"""A software-in-the-loop vehicle: flight model + sensors + field + MAVLink endpoint, stepped
+in lock-step at a fixed rate, real time or faster (speedup), on PX4 SITL's ports.
+
+Ports (as PX4 SITL): the offboard/API link sends from UDP 14580+N to 14540+N (MAVSDK,
+companion computers: `udpin://0.0.0.0:14540`), the GCS link from 18570+N to 14550+N
+(QGroundControl, MAVProxy: `--master=udpin:0.0.0.0:14550`).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sim.gridworld import BatchGridWorld, GridConfig, cell_to_ned, sample_episodes
+from sim.vehicle.geo import HomePosition
+from sim.vehicle.gps import GpsConfig, GpsModel
+
+from .tlog import TlogWriter
+from .udp import UdpLink
+from .vehicle import MavlinkVehicle
+
+TICK_S = 0.02
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class SitlConfig:
+    instance: int = 0
+    speedup: float = 1.0  # 0: as fast as the machine allows
+    physics: str = "pybullet"  # pybullet | kinematic
+    home: HomePosition = field(default_factory=HomePosition)
+    grid: GridConfig = field(default_factory=GridConfig)
+    episode_seed: int = 0
+    seed: int = 0
+    camera: bool = True
+    camera_px: int = 50
+    signing_key: bytes | None = None
+    tlog: Path | None = None
+    gcs_link: bool = True
+    host: str = "127.0.0.1"
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.instance < 40:
+            raise ValueError("instance must be in 0..39 (ports 14540+N must not meet 14580+M)")
+        if self.speedup < 0:
+            raise ValueError("speedup must be >= 0 (0: as fast as possible)")
+        if self.physics not in ("pybullet", "kinematic"):
+            raise ValueError(f"physics must be 'pybullet' or 'kinematic' (got {self.physics!r})")
+        if self.camera and self.physics != "pybullet":
+            self.camera = False  # the camera renders the PyBullet scene
+
+    @property
+    def api_ports(self) -> tuple[int, int]:
+        return 14580 + self.instance, 14540 + self.instance
+
+    @property
+    def gcs_ports(self) -> tuple[int, int]:
+        return 18570 + self.instance, 14550 + self.instance
+
+
+class Sitl:
+    """Build with a config, then `start()` (background thread) or `run()` (foreground)."""
+
+    def __init__(self, cfg: SitlConfig) -> None:
+        self.cfg = cfg
+        self.episode = sample_episodes(cfg.grid, 1, cfg.episode_seed)
+        start_cell = self.episode.agent[0]
+        spawn_ne = cell_to_ned(start_cell)
+        # home is the spawn point; the field's cell (0, 0) lies at -spawn in local NED
+        field_home = HomePosition(cfg.home.lat_deg, cfg.home.lon_deg, cfg.home.alt_m)
+        self.home = HomePosition(*field_home.ned_to_geodetic(np.array([spawn_ne[0], spawn_ne[1], 0.0])))
+        self.field_origin = field_home
+        self.spawn_ne = spawn_ne
+        self._field = None
+        if cfg.physics == "pybullet":
+            from sim.vehicle.quadrotor import PyBulletQuadrotor
+
+            self.model = PyBulletQuadrotor()
+        else:
+            from sim.vehicle.kinematic import KinematicVehicle
+
+            self.model = KinematicVehicle()
+        camera = None
+        if cfg.camera:
+            from sim.vehicle.camera import DownCamera
+            from sim.vehicle.field import Field
+
+            cid = self.model.cid
+            # the PyBullet world is centred on the spawn point: shift the field by -spawn
+            self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed)
+            self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
+            camera = self._render
+        self.tlog = TlogWriter(cfg.tlog) if cfg.tlog else None
+        sink = self.tlog.write if self.tlog else None
+        links = [UdpLink(*cfg.api_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink)]
+        if cfg.gcs_link:
+            links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink))
+        self.gps = GpsModel(self.home, cfg.seed, GpsConfig())
+        self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera)
+        self.t = 0.0
+        self.errors: list[str] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._update_targets()
+
+    # -- the field's truth (never sent over MAVLink) --------------------------------------
+    def target_cells(self, t: float | None = None) -> np.ndarray:
+        """Targets' cells now, moving smoothly between grid steps (one step per second)."""
+        t = self.t if t is None else t
+        ep = self.episode
+        if ep.paths is None:
+            return ep.targets[0].astype(float)
+        k = int(np.floor(t))
+        a = ep.paths[0, min(k, ep.paths.shape[1] - 1)]
+        b = ep.paths[0, min(k + 1, ep.paths.shape[1] - 1)]
+        return a + (b - a) * (t - k)
+
+    def vehicle_cell(self) -> np.ndarray:
+        """The true cell under the vehicle (fractional)."""
+        ned = self.model.state.position_ned[:2] + self.spawn_ne
+        return np.array([ned[1] / 2.0, -ned[0] / 2.0])
+
+    def _update_targets(self) -> None:
+        if self._field is not None:
+            cells = self.target_cells() - self.episode.agent[0]  # world is centred on the spawn
+            self._field.set_targets(cells)
+
+    def _render(self, position_ned: np.ndarray, yaw: float) -> np.ndarray:
+        self._update_targets()
+        return self._cam.render(position_ned, yaw)
+
+    # -- running -------------------------------------------------------------------------
+    def step(self) -> None:
+        self.model.step(TICK_S)
+        self.t += TICK_S
+        self.vehicle.tick(self.t)
+
+    def run(self, duration: float | None = None) -> None:
+        wall0 = time.monotonic()
+        while not self._stop.is_set() and (duration is None or self.t < duration):
+            try:
+                self.step()
+            except Exception:  # a bug in one tick must not take the vehicle off the link
+                self.errors.append(traceback.format_exc())
+                log.exception("SITL tick failed at t=%.2f", self.t)
+                if len(self.errors) > 100:
+                    raise
+            if self.cfg.speedup > 0:
+                lag = wall0 + self.t / self.cfg.speedup - time.monotonic()
+                if lag > 0:
+                    time.sleep(lag)
+
+    def start(self) -> Sitl:
+        self._thread = threading.Thread(target=self.run, name=f"sitl-{self.cfg.instance}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        for link in self.vehicle.links:
+            link.close()
+        if self.tlog:
+            self.tlog.close()
+        self.model.close()
+
+    def __enter__(self) -> Sitl:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def grid_world(self) -> BatchGridWorld:
+        return BatchGridWorld(self.episode, self.cfg.seed)

@@ -1,0 +1,95 @@
+"""One MAVLink-over-UDP link as PX4 SITL opens them: bound to a local port, sending to a
+default remote port and to every address that has talked to it.
+
+Datagrams are parsed by pymavlink's codec; malformed bytes (bad CRC, truncated frames,
+garbage) and messages failing the signature check are counted and dropped, never raised."""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import common as mavlink
+
+
+@dataclass
+class LinkStats:
+    received: int = 0
+    sent: int = 0
+    bad_data: int = 0
+    rejected_unsigned: int = 0
+
+
+class UdpLink:
+    def __init__(
+        self,
+        local_port: int,
+        remote_port: int,
+        host: str = "127.0.0.1",
+        system_id: int = 1,
+        component_id: int = 1,
+        signing_key: bytes | None = None,
+        on_bytes: Callable[[bytes, bool], None] | None = None,
+    ) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind(("0.0.0.0", local_port))
+        self.sock.setblocking(False)
+        self.peers: list[tuple[str, int]] = [(host, remote_port)]
+        self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self.mav.robust_parsing = True
+        self.stats = LinkStats()
+        self.on_bytes = on_bytes  # (raw packet, outgoing) -> None, for the tlog
+        if signing_key is not None:
+            if len(signing_key) != 32:
+                raise ValueError("a MAVLink2 signing key is 32 bytes")
+            self.mav.signing.secret_key = signing_key
+            self.mav.signing.sign_outgoing = True
+            self.mav.signing.link_id = 0
+            # RADIO_STATUS may come unsigned from radios (the MAVLink signing spec's exception)
+            self.mav.signing.allow_unsigned_callback = lambda _m, msg_id: msg_id == mavlink.MAVLINK_MSG_ID_RADIO_STATUS
+
+    def send(self, msg: mavlink.MAVLink_message) -> None:
+        buf = msg.pack(self.mav)
+        for peer in self.peers:
+            try:
+                self.sock.sendto(buf, peer)
+            except OSError:
+                continue
+        self.stats.sent += 1
+        if self.on_bytes:
+            self.on_bytes(bytes(buf), True)
+
+    def poll(self) -> list[mavlink.MAVLink_message]:
+        out = []
+        while True:
+            try:
+                data, addr = self.sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                break
+            rejected_before = self.mav.signing.reject_count + self.mav.signing.badsig_count
+            try:
+                msgs = self.mav.parse_buffer(data) or []
+            except mavlink.MAVError:
+                msgs = []
+                self.stats.bad_data += 1
+            rejected = self.mav.signing.reject_count + self.mav.signing.badsig_count - rejected_before
+            self.stats.rejected_unsigned += rejected
+            good = [m for m in msgs if m.get_type() != "BAD_DATA"]
+            self.stats.bad_data += len(msgs) - len(good)
+            if not msgs and not rejected:
+                self.stats.bad_data += 1 if data else 0
+            if good:
+                if addr not in self.peers:
+                    self.peers.append(addr)
+                self.stats.received += len(good)
+                if self.on_bytes:
+                    self.on_bytes(data, False)
+                out.extend(good)
+        return out
+
+    def close(self) -> None:
+        self.sock.close()
