@@ -70,6 +70,9 @@ class UdpLink:
                 break
             except OSError:
                 break
+            # UDP carries whole packets: a truncated one must not swallow the next datagram
+            self.mav.buf, self.mav.buf_index = bytearray(), 0
+            self.mav.expected_length, self.mav.have_prefix_error = mavlink.HEADER_LEN_V1 + 2, False
             rejected_before = self.mav.signing.reject_count + self.mav.signing.badsig_count
             try:
                 msgs = self.mav.parse_buffer(data) or []
@@ -80,7 +83,8 @@ class UdpLink:
             self.stats.rejected_unsigned += rejected
             good = [m for m in msgs if m.get_type() != "BAD_DATA"]
             self.stats.bad_data += len(msgs) - len(good)
-            if not msgs and not rejected:
+            leftover = len(self.mav.buf) - self.mav.buf_index
+            if (not msgs and not rejected) or leftover > 0:
                 self.stats.bad_data += 1 if data else 0
             if good:
                 if addr not in self.peers:

@@ -50,6 +50,7 @@ DEFAULT_RATES = {
     M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0, M.MAVLINK_MSG_ID_VFR_HUD: 4.0,
 }
 FORCE_MAGIC = 21196
+REQUESTABLE = set(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE}
 
 
 @dataclass
@@ -422,8 +423,12 @@ class MavlinkVehicle:
             self._next_due[msg_id] = self.t
             return self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
         if cmd == R.MAV_CMD_REQUEST_MESSAGE:
-            ok = self._send_message(q[0])
-            return self._ack(cmd, R.MAV_RESULT_ACCEPTED if ok else R.MAV_RESULT_UNSUPPORTED, msg)
+            # the ACK first, then the message, as the command protocol describes
+            ok = q[0] in REQUESTABLE and (q[0] != M.MAVLINK_MSG_ID_GPS_RAW_INT or self.fix is not None)
+            self._ack(cmd, R.MAV_RESULT_ACCEPTED if ok else R.MAV_RESULT_UNSUPPORTED, msg)
+            if ok:
+                self._send_message(q[0])
+            return None
         if cmd == R.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
             self._send_message(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)

@@ -53,7 +53,7 @@ class Field:
         half = [(width + 2 * margin_cells) * cell_m / 2, (height + 2 * margin_cells) * cell_m / 2, 0.01]
         centre = cell_to_enu(np.array([(width - 1) / 2, (height - 1) / 2]), cell_m)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(GRASS), physicsClientId=client)
-        self.ground = p.createMultiBody(0, -1, vis, [centre[0], centre[1], -0.011], physicsClientId=client)
+        self.ground = p.createMultiBody(0, -1, vis, [centre[0], centre[1], -0.008], physicsClientId=client)
         names = list(COATS)
         self.coats = [names[i] for i in self.rng.integers(0, len(names), n_targets)]
         self.headings = self.rng.uniform(-np.pi, np.pi, n_targets)

@@ -1,0 +1,39 @@
+"""A plain pymavlink ground station for the tests: nothing of ours, only mavutil."""
+
+from __future__ import annotations
+
+import time
+
+from pymavlink import mavutil
+
+M = mavutil.mavlink
+
+
+class Gcs:
+    def __init__(self, port: int, signing_key: bytes | None = None) -> None:
+        self.c = mavutil.mavlink_connection(f"udpin:0.0.0.0:{port}", source_system=255, source_component=190)
+        if signing_key is not None:
+            self.c.setup_signing(signing_key, sign_outgoing=True)
+        self.c.wait_heartbeat(timeout=10)
+        self.texts: list[str] = []  # every STATUSTEXT seen, whatever was being waited for
+
+    def recv(self, kind, timeout: float = 5.0, cond=None):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            m = self.c.recv_match(blocking=True, timeout=0.2)
+            if m is None:
+                continue
+            if m.get_type() == "STATUSTEXT":
+                self.texts.append(m.text)
+            kinds = [kind] if isinstance(kind, str) else kind
+            if m.get_type() in kinds and (cond is None or cond(m)):
+                return m
+        return None
+
+    def command(self, cmd: int, *params: float, timeout: float = 3.0):
+        p = list(params) + [0.0] * (7 - len(params))
+        self.c.mav.command_long_send(1, 1, cmd, 0, *p)
+        return self.recv("COMMAND_ACK", timeout, lambda a: a.command == cmd)
+
+    def close(self) -> None:
+        self.c.close()

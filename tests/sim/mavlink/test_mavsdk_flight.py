@@ -1,0 +1,81 @@
+"""The acceptance flight, driven by MAVSDK (the registry's mavsdk package, unmodified)."""
+
+import asyncio
+import time
+
+import numpy as np
+from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.mission import MissionAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.mission import MissionItem, MissionPlan
+
+
+async def _until(pred, timeout: float, what: str) -> None:
+    end = time.monotonic() + timeout
+    while not await pred():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.1)
+
+
+def test_mavsdk_connect_health_arm_takeoff_mission_land_disarm(sitl_factory) -> None:
+    sitl = sitl_factory(physics="pybullet", camera=False)
+    port = sitl.cfg.api_ports[1]
+
+    async def fly() -> dict:
+        m = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+        try:
+            await m.add_any_connection(f"udpin://0.0.0.0:{port}")
+            system = await m.first_autopilot(timeout_s=15.0)
+            assert system is not None, "MAVSDK discovered no autopilot"
+            tel, act, mis = TelemetryAsync(system), ActionAsync(system), MissionAsync(system)
+            await _until(tel.health_all_ok, 15, "health all ok")
+            health = await tel.health()
+            assert health.is_global_position_ok and health.is_home_position_ok and health.is_armable
+            home = await tel.home()
+            await act.arm()
+            await _until(tel.armed, 5, "armed")
+            await act.set_takeoff_altitude(3.5)
+            await act.takeoff()
+            await _until(tel.in_air, 15, "in air")
+            pos = await tel.position()
+            items = [
+                MissionItem(
+                    latitude_deg=home.latitude_deg + dn / 111_200.0,
+                    longitude_deg=home.longitude_deg + de / (111_200.0 * np.cos(np.radians(home.latitude_deg))),
+                    relative_altitude_m=3.5, speed_m_s=3.0, is_fly_through=False, acceptance_radius_m=0.5,
+                    vehicle_action=MissionItem.VehicleAction.NONE,
+                )
+                for dn, de in [(8, 0), (8, 8), (0, 8), (0, 0)]
+            ]
+            await mis.upload_mission(MissionPlan(items))
+            await mis.start_mission()
+            visited = []
+
+            async def finished() -> bool:
+                visited.append(sitl.model.state.position_ned.copy())
+                return await mis.is_mission_finished()
+
+            await _until(finished, 60, "mission finished")
+            # telemetry agrees with the physics (within the GPS error)
+            pos = await tel.position()
+            truth = sitl.model.state.position_ned
+            reported = sitl.home.geodetic_to_ned(pos.latitude_deg, pos.longitude_deg, pos.absolute_altitude_m)
+            await act.land()
+
+            async def disarmed() -> bool:
+                return not await tel.armed()
+
+            await _until(disarmed, 30, "disarmed after landing")
+            return {"visited": np.array(visited), "truth": truth, "reported": reported,
+                    "landed": sitl.model.state.landed}
+        finally:
+            m.destroy()
+
+    r = asyncio.run(fly())
+    assert np.linalg.norm(r["reported"][:2] - r["truth"][:2]) < 4.0
+    v = r["visited"]
+    for corner in ([8, 0], [8, 8], [0, 8]):
+        assert np.min(np.linalg.norm(v[:, :2] - corner, axis=1)) < 1.0, f"flew past {corner}"
+    assert r["landed"] and not sitl.model.state.armed

@@ -1,0 +1,209 @@
+"""The same flight with a plain pymavlink ground station, plus the protocol's edges."""
+
+import math
+import socket
+import time
+
+import numpy as np
+import pytest
+from plain_gcs import Gcs, M
+from pymavlink import mavutil
+
+from sim.mavlink import FrameAssembler
+
+
+def _upload(g: Gcs, items) -> int:
+    g.c.mav.mission_count_send(1, 1, len(items), M.MAV_MISSION_TYPE_MISSION)
+    while True:
+        m = g.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5)
+        assert m is not None, "vehicle stopped asking for items"
+        if m.get_type() == "MISSION_ACK":
+            return m.type
+        g.c.mav.send(items[m.seq])
+
+
+def _item(g: Gcs, seq: int, cmd: int, lat: float, lon: float, alt: float):
+    return g.c.mav.mission_item_int_encode(1, 1, seq, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, cmd, 0, 1, 0, 0.5, 0, math.nan,
+                                           int(lat * 1e7), int(lon * 1e7), alt, M.MAV_MISSION_TYPE_MISSION)
+
+
+def test_pymavlink_flight_and_mission_download(sitl_factory) -> None:
+    sitl = sitl_factory(physics="pybullet", camera=False)
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        assert g.recv("GPS_RAW_INT", 5, lambda m: m.fix_type == 3) is not None
+        home = g.recv("HOME_POSITION", 5)
+        lat0, lon0 = home.latitude * 1e-7, home.longitude * 1e-7
+        d = 1 / 111_200.0
+        items = [_item(g, 0, M.MAV_CMD_NAV_TAKEOFF, lat0, lon0, 3.5)] + [
+            _item(g, i + 1, M.MAV_CMD_NAV_WAYPOINT, lat0 + dn * d, lon0 + de * d / math.cos(math.radians(lat0)), 3.5)
+            for i, (dn, de) in enumerate([(6, 0), (6, 6), (0, 6), (0, 0)])
+        ] + [_item(g, 5, M.MAV_CMD_NAV_LAND, lat0, lon0, 0)]
+        assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
+        # download equals upload
+        g.c.mav.mission_request_list_send(1, 1, M.MAV_MISSION_TYPE_MISSION)
+        count = g.recv("MISSION_COUNT", 5).count
+        got = []
+        for i in range(count):
+            g.c.mav.mission_request_int_send(1, 1, i, M.MAV_MISSION_TYPE_MISSION)
+            got.append(g.recv("MISSION_ITEM_INT", 5, lambda m, i=i: m.seq == i))
+        g.c.mav.mission_ack_send(1, 1, M.MAV_MISSION_ACCEPTED, M.MAV_MISSION_TYPE_MISSION)
+        assert [(m.command, m.x, m.y, m.z) for m in got] == [(m.command, m.x, m.y, m.z) for m in items]
+
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_MISSION_START, 0, 0).result == M.MAV_RESULT_ACCEPTED
+        reached = set()
+        end = time.monotonic() + 60
+        while time.monotonic() < end and len(reached) < 5:
+            m = g.recv("MISSION_ITEM_REACHED", 1)
+            if m is not None:
+                reached.add(m.seq)
+        assert reached >= {0, 1, 2, 3, 4}
+        hb_disarmed = g.recv("HEARTBEAT", 30, lambda h: not h.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+        assert hb_disarmed is not None, "lands and disarms at the end of the mission"
+        # telemetry agrees with physics
+        gp = g.recv("GLOBAL_POSITION_INT", 3)
+        ned = sitl.home.geodetic_to_ned(gp.lat * 1e-7, gp.lon * 1e-7, gp.alt * 1e-3)
+        assert np.linalg.norm(ned[:2] - sitl.model.state.position_ned[:2]) < 4.0
+        ess = g.recv("EXTENDED_SYS_STATE", 3)
+        assert ess.landed_state == M.MAV_LANDED_STATE_ON_GROUND
+    finally:
+        g.close()
+
+
+def test_command_acks_are_honest(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_TEMPORARILY_REJECTED
+        assert g.command(M.MAV_CMD_DO_SET_MODE, 1, 99, 0).result == M.MAV_RESULT_UNSUPPORTED
+        assert g.command(M.MAV_CMD_MISSION_START).result == M.MAV_RESULT_DENIED  # no mission
+        assert g.command(M.MAV_CMD_DO_FLIGHTTERMINATION, 1).result == M.MAV_RESULT_UNSUPPORTED
+        assert g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == M.MAV_RESULT_ACCEPTED
+        av = g.recv("AUTOPILOT_VERSION", 3)
+        assert av.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+        assert not av.capabilities & M.MAV_PROTOCOL_CAPABILITY_FTP, "claims only what it does"
+        assert g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 20_000).result == M.MAV_RESULT_ACCEPTED
+        t0 = time.monotonic()
+        n = sum(g.recv("ATTITUDE", 1) is not None for _ in range(20))
+        assert n == 20 and time.monotonic() - t0 < 2.0
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0).result == M.MAV_RESULT_DENIED, "no disarm in the air"
+    finally:
+        g.close()
+
+
+def test_geofence_rejects_out_of_bounds_targets(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        home = g.recv("HOME_POSITION", 5)
+        far_lat = home.latitude * 1e-7 + 500 / 111_200.0  # 500 m north: beyond GF_MAX_HOR_DIST = 100
+        items = [_item(g, 0, M.MAV_CMD_NAV_WAYPOINT, far_lat, home.longitude * 1e-7, 3.5)]
+        assert _upload(g, items) == M.MAV_MISSION_DENIED
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        ack = g.command(M.MAV_CMD_DO_REPOSITION, -1, 0, 0, math.nan, far_lat, home.longitude * 1e-7, home.altitude * 1e-3 + 3.5)
+        assert ack.result == M.MAV_RESULT_DENIED
+        g.recv("HEARTBEAT", 1)
+        assert any("Geofence" in t for t in g.texts), g.texts
+        time.sleep(0.5)
+        assert np.hypot(*sitl.model.state.position_ned[:2]) < 5.0, "it never flew there"
+        assert sitl.vehicle.counters.fence_rejections >= 2
+    finally:
+        g.close()
+
+
+def test_parameters_list_read_set_and_bad_values(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        g.c.mav.param_request_list_send(1, 1)
+        names = set()
+        first = g.recv("PARAM_VALUE", 3)
+        names.add(first.param_id)
+        while len(names) < first.param_count:
+            m = g.recv("PARAM_VALUE", 2)
+            assert m is not None
+            names.add(m.param_id)
+        assert {"MIS_TAKEOFF_ALT", "NAV_ACC_RAD", "GF_MAX_HOR_DIST"} <= names
+        g.c.mav.param_set_send(1, 1, b"NAV_ACC_RAD", 0.8, M.MAV_PARAM_TYPE_REAL32)
+        assert g.recv("PARAM_VALUE", 3, lambda m: m.param_id == "NAV_ACC_RAD").param_value == pytest.approx(0.8)
+        g.c.mav.param_set_send(1, 1, b"NAV_ACC_RAD", -5.0, M.MAV_PARAM_TYPE_REAL32)
+        echo = g.recv("PARAM_VALUE", 3, lambda m: m.param_id == "NAV_ACC_RAD")
+        assert echo.param_value == pytest.approx(0.8), "a bad value is refused and the old one kept"
+        g.c.mav.param_request_read_send(1, 1, b"MIS_TAKEOFF_ALT", -1)
+        assert g.recv("PARAM_VALUE", 3, lambda m: m.param_id == "MIS_TAKEOFF_ALT").param_value == pytest.approx(3.5)
+    finally:
+        g.close()
+
+
+def test_malformed_bytes_are_counted_and_survived(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        good = g.c.mav.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0).pack(g.c.mav)
+        bad_crc = bytearray(good)
+        bad_crc[-1] ^= 0xFF
+        for junk in (b"\x00" * 40, bytes(range(256)), bytes(bad_crc), good[: len(good) // 2], b"\xfd\xff"):
+            sock.sendto(junk, ("127.0.0.1", sitl.cfg.gcs_ports[0]))
+        time.sleep(0.3)
+        assert sitl.vehicle.links[1].stats.bad_data >= 3
+        assert g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == M.MAV_RESULT_ACCEPTED
+        assert not sitl.errors
+    finally:
+        g.close()
+
+
+def test_signing_rejects_unsigned_commands(sitl_factory) -> None:
+    key = bytes(range(32))
+    sitl = sitl_factory(physics="kinematic", signing_key=key)
+    unsigned = Gcs(sitl.cfg.gcs_ports[1])  # heartbeats are readable; commands must be signed
+    try:
+        assert unsigned.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout=1.5) is None
+        assert not sitl.model.state.armed
+        assert sitl.vehicle.links[1].stats.rejected_unsigned >= 1
+    finally:
+        unsigned.close()
+    signed = Gcs(sitl.cfg.gcs_ports[1], signing_key=key)
+    try:
+        assert signed.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert sitl.model.state.armed
+    finally:
+        signed.close()
+    wrong = Gcs(sitl.cfg.gcs_ports[1], signing_key=bytes(32))
+    try:
+        assert wrong.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196, timeout=1.5) is None
+        assert sitl.model.state.armed, "a wrongly signed disarm is not executed"
+    finally:
+        wrong.close()
+
+
+def test_camera_frames_over_image_transmission_and_tlog(sitl_factory, tmp_path) -> None:
+    tlog = tmp_path / "flight.tlog"
+    sitl = sitl_factory(physics="pybullet", camera=True, tlog=tlog)
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        asm = FrameAssembler()
+        ack = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE)
+        assert ack.result == M.MAV_RESULT_ACCEPTED
+        frame = None
+        end = time.monotonic() + 5
+        while frame is None and time.monotonic() < end:
+            m = g.recv(["DATA_TRANSMISSION_HANDSHAKE", "ENCAPSULATED_DATA"], 1)
+            if m is not None:
+                frame = asm.feed(m)
+        assert frame is not None and frame.shape == (50, 50, 3)
+        assert 60 < frame[..., 1].mean() < 200, "a rendered field, not a blank"
+    finally:
+        g.close()
+    sitl.stop()
+    log = mavutil.mavlink_connection(str(tlog))
+    kinds = set()
+    while (m := log.recv_match()) is not None:
+        kinds.add(m.get_type())
+    assert {"HEARTBEAT", "GPS_RAW_INT", "COMMAND_LONG", "COMMAND_ACK"} <= kinds
