@@ -100,7 +100,8 @@ class Sitl:
         sink = self.tlog.write if self.tlog else None
         links = [UdpLink(*cfg.api_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink)]
         if cfg.gcs_link:
-            links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink))
+            links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink,
+                                 log_outgoing=False))
         self.gps = GpsModel(self.home, cfg.seed, GpsConfig())
         self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera)
         self.t = 0.0

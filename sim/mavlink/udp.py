@@ -31,6 +31,7 @@ class UdpLink:
         component_id: int = 1,
         signing_key: bytes | None = None,
         on_bytes: Callable[[bytes, bool], None] | None = None,
+        log_outgoing: bool = True,
     ) -> None:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -41,6 +42,7 @@ class UdpLink:
         self.mav.robust_parsing = True
         self.stats = LinkStats()
         self.on_bytes = on_bytes  # (raw packet, outgoing) -> None, for the tlog
+        self.log_outgoing = log_outgoing  # several links send the same stream: log it once
         if signing_key is not None:
             if len(signing_key) != 32:
                 raise ValueError("a MAVLink2 signing key is 32 bytes")
@@ -58,7 +60,7 @@ class UdpLink:
             except OSError:
                 continue
         self.stats.sent += 1
-        if self.on_bytes:
+        if self.on_bytes and self.log_outgoing:
             self.on_bytes(bytes(buf), True)
 
     def poll(self) -> list[mavlink.MAVLink_message]:

@@ -40,3 +40,17 @@ def test_synth_then_refuses_to_overwrite(tmp_path: Path) -> None:
     assert r.exit_code != 0 and "already holds a dataset" in _text(r.output)
     r = runner.invoke(app, ["synth", "--out", str(tmp_path / "cu"), "--episodes", "5", "--method", "cu", "--motion", "herd"])
     assert r.exit_code != 0
+
+
+def test_sitl_command_runs_and_writes_readable_tlogs(tmp_path: Path) -> None:
+    from pymavlink import mavutil
+
+    r = runner.invoke(app, ["sitl", "--instance", "31", "--count", "2", "--physics", "kinematic", "--speedup", "0",
+                            "--duration", "2", "--tlog", str(tmp_path / "f.tlog")])
+    assert r.exit_code == 0, r.output
+    assert "udpin://0.0.0.0:14571" in r.output and "udpin:0.0.0.0:14582" in r.output
+    for n in (31, 32):
+        log = mavutil.mavlink_connection(str(tmp_path / f"f-{n}.tlog"))
+        assert log.recv_match(type="HEARTBEAT") is not None
+    r = runner.invoke(app, ["sitl", "--signing-key", "zz"])
+    assert r.exit_code != 0 and "64 hex" in _text(r.output)
