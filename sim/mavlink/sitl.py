@@ -9,6 +9,7 @@ companion computers: `udpin://0.0.0.0:14540`), the GCS link from 18570+N to 1455
 from __future__ import annotations
 
 import logging
+import select
 import threading
 import time
 import traceback
@@ -153,9 +154,13 @@ class Sitl:
                 if len(self.errors) > 100:
                     raise
             if self.cfg.speedup > 0:
-                lag = wall0 + self.t / self.cfg.speedup - time.monotonic()
-                if lag > 0:
-                    time.sleep(lag)
+                # wait for the next tick, answering messages as they arrive rather than
+                # on the tick: command latency stays at the network's, not the tick's
+                socks = [link.sock for link in self.vehicle.links]
+                while (lag := wall0 + self.t / self.cfg.speedup - time.monotonic()) > 0:
+                    ready, _, _ = select.select(socks, [], [], lag)
+                    if ready:
+                        self.vehicle.service()
 
     def start(self) -> Sitl:
         self._thread = threading.Thread(target=self.run, name=f"sitl-{self.cfg.instance}", daemon=True)

@@ -147,11 +147,15 @@ class MavlinkVehicle:
         return np.array([ned[0], ned[1], -rel])
 
     # -- the tick ------------------------------------------------------------------------
-    def tick(self, t: float) -> None:
-        self.t = t
+    def service(self) -> None:
+        """Answer whatever has arrived, without advancing time (between physics ticks)."""
         for link in self.links:
             for msg in link.poll():
                 self.handle(msg)
+
+    def tick(self, t: float) -> None:
+        self.t = t
+        self.service()
         s = self.model.state
         fix = self.gps.sample(t, s.position_ned, s.velocity_ned)
         if fix is not None:
