@@ -78,3 +78,17 @@ def test_checkpoint_round_trip_and_clear_errors(tmp_path: Path) -> None:
     torch.save({"hello": 1}, tmp_path / "foreign.pt")
     with pytest.raises(CheckpointError, match="not a uavsearch checkpoint"):
         load_model(tmp_path / "foreign.pt")
+
+
+def test_shipped_checkpoint_loads_and_beats_the_naive_baseline() -> None:
+    from policy.baselines import make_policy
+    from policy.evaluation import evaluate
+    from policy.nn import shipped_checkpoint
+
+    assert shipped_checkpoint().exists()
+    cfg = GridConfig()
+    ours = evaluate(make_policy("dualstream", cfg), cfg, 300, seed=11, progress=False).columns
+    ns = evaluate(make_policy("ns", cfg), cfg, 300, seed=11, progress=False).columns
+    assert ours["success_pct"] > 99.0
+    assert ours["mean_moves"] < ns["mean_moves"]
+    assert ours["loop_pct"] is not None, "runs under loop detection, as in the paper"
