@@ -63,5 +63,13 @@ register_policy("ns", _simple("NaivePolicy"), "naive solution: visible target, e
 register_policy("frontier", _simple("FrontierPolicy"), "greedy: nearest unvisited cell")
 register_policy("lawnmower", _simple("LawnmowerPolicy"), "boustrophedon sweep from the nearest corner")
 register_policy("random", _simple("RandomPolicy"), "uniformly random valid moves")
+def _drqn(cfg=None, checkpoint=None, **_):
+    from ..drqn import DrqnPolicy
+    from ..nn import shipped_checkpoint
+
+    return DrqnPolicy.load(checkpoint or shipped_checkpoint("drqn_static_random"))
+
+
+register_policy("drqn", _drqn, "DRQN baseline trained by reward (shipped checkpoint or --checkpoint)")
 register_policy("dualstream", _network("dualstream_static_random"), "the dual-stream network (shipped checkpoint or --checkpoint)")
 register_policy("ssn", _network("ssn_static_random"), "split-stream baseline network (shipped checkpoint or --checkpoint)")

@@ -31,7 +31,7 @@ def run_eval(
 
     results = []
     for name in policies:
-        kw = {"checkpoint": checkpoint} if checkpoint is not None and name in ("dualstream", "ssn") else {}
+        kw = {"checkpoint": checkpoint} if checkpoint is not None and name in ("dualstream", "ssn", "drqn") else {}
         results.append(evaluate(make_policy(name, cfg, **kw), cfg, episodes, seed, progress=progress))
     base = cfg.distribution == "random" and not cfg.moving and cfg.map_variant == "spatial"
     paper = BASE_CASE_ROWS if base else {}

@@ -18,7 +18,13 @@ from .observations import spatial_map, target_occupancy, views
 
 
 class BatchGridWorld:
-    def __init__(self, episodes: Episodes, seed: int = 0) -> None:
+    def __init__(self, episodes: Episodes, seed: int = 0, off_map: str = "random") -> None:
+        """off_map: 'random' replaces an off-map action by a random valid move (the paper's
+        rule, Section V-A); 'stay' leaves the agent in place (a wall bump, as the DRQN baseline
+        was trained). Either way it counts one move."""
+        if off_map not in ("random", "stay"):
+            raise ValueError(f"off_map must be 'random' or 'stay' (got {off_map!r})")
+        self.off_map = off_map
         cfg: GridConfig = episodes.cfg
         self.cfg, self.episodes = cfg, episodes
         n, r, w, h = len(episodes), cfg.n_targets, cfg.width, cfg.height
@@ -80,12 +86,14 @@ class BatchGridWorld:
         valid = self.valid_actions()
         bad = active & ~valid[self._rows, a]
         if bad.any():
-            keys = self.rng.random((int(bad.sum()), self.n_actions))
-            keys[~valid[bad]] = -1.0
-            a[bad] = keys.argmax(axis=1)
             self.replaced[bad] += 1
+            if self.off_map == "random":
+                keys = self.rng.random((int(bad.sum()), self.n_actions))
+                keys[~valid[bad]] = -1.0
+                a[bad] = keys.argmax(axis=1)
         rows = self._rows[active]
-        self.agent[active] += DELTAS[a[active]]
+        move = active & ~(bad if self.off_map == "stay" else np.zeros_like(bad))
+        self.agent[move] += DELTAS[a[move]]
         self.t[active] += 1
         ay, ax = self.agent[rows, 1], self.agent[rows, 0]
         self.visited[rows, ay, ax] = True
