@@ -9,6 +9,7 @@ missions/: it is the one package allowed to wire the renderer into the policy pi
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -143,11 +144,16 @@ def run_table1(scale: str, out: Path, seed: int = 0, only: list[str] | None = No
     out.mkdir(parents=True, exist_ok=True)
     tasks = [(r, scale, str(out), seed, None if drqn_checkpoint is None else str(drqn_checkpoint)) for r in todo]
     results = fan_out(run_row, tasks, workers=workers, ray_address=ray_address)
-    doc = stamp({"scale": asdict(SCALES[scale]), "rows": [r.name for r in todo]}, seed, rows=results)
+    previous = out / f"table1_{scale}.json"
+    if only and previous.exists():  # re-running some rows: keep the others from the last run
+        done = {r["row"]: r for r in json.loads(previous.read_text())["rows"]}
+        done |= {r["row"]: r for r in results}
+        results = [done[r.name] for r in rows() if r.name in done]
+    doc = stamp({"scale": asdict(SCALES[scale]), "rows": [r["row"] for r in results]}, seed, rows=results)
     atomic_write_json(out / f"table1_{scale}.json", doc)
     with atomic_open(out / f"table1_{scale}.md", "w") as f:
         f.write(render_markdown(doc, scale))
-    plot_differences(out, todo, scale)
+    plot_differences(out, [r for r in rows() if r.name in doc["config"]["rows"]], scale)
     return doc
 
 
