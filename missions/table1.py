@@ -90,7 +90,7 @@ def _renderer_view_fn(grid: GridConfig, seed: int):
     return view_fn
 
 
-def run_row(row: Row, scale_name: str, out: str, seed: int, drqn_checkpoint: str | None) -> dict[str, Any]:
+def run_row(row: Row, scale_name: str, work: str, seed: int, drqn_checkpoint: str | None) -> dict[str, Any]:
     """One Table I row end to end; returns its columns (or why it is not there yet)."""
     import torch
 
@@ -102,7 +102,7 @@ def run_row(row: Row, scale_name: str, out: str, seed: int, drqn_checkpoint: str
     from policy.training import TrainConfig, train
 
     sc = SCALES[scale_name]
-    d = Path(out) / _slug(row.name)
+    d = Path(work) / _slug(row.name)
     d.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     info: dict[str, Any] = {"row": row.name, "grid": row.grid.to_dict(), "method": row.method, "model": row.model,
@@ -132,7 +132,10 @@ def run_row(row: Row, scale_name: str, out: str, seed: int, drqn_checkpoint: str
 
 
 def run_table1(scale: str, out: Path, seed: int = 0, only: list[str] | None = None, workers: int | None = None,
-               ray_address: str | None = None, drqn_checkpoint: Path | None = None) -> dict[str, Any]:
+               ray_address: str | None = None, drqn_checkpoint: Path | None = None,
+               work: Path | None = None) -> dict[str, Any]:
+    """Datasets, runs and per-row evaluations go to `work` (default runs/table1_<scale>);
+    only the table (Markdown, JSON) and the Fig. 4 plot go to `out`."""
     from policy.fanout import fan_out
 
     if scale not in SCALES:
@@ -142,7 +145,9 @@ def run_table1(scale: str, out: Path, seed: int = 0, only: list[str] | None = No
         known = [r.name for r in rows()]
         raise ValueError(f"unknown row(s) {sorted(set(only) - set(known))}; rows: {known}")
     out.mkdir(parents=True, exist_ok=True)
-    tasks = [(r, scale, str(out), seed, None if drqn_checkpoint is None else str(drqn_checkpoint)) for r in todo]
+    work = work or Path("runs") / f"table1_{scale}"
+    work.mkdir(parents=True, exist_ok=True)
+    tasks = [(r, scale, str(work), seed, None if drqn_checkpoint is None else str(drqn_checkpoint)) for r in todo]
     results = fan_out(run_row, tasks, workers=workers, ray_address=ray_address)
     previous = out / f"table1_{scale}.json"
     if only and previous.exists():  # re-running some rows: keep the others from the last run
@@ -153,7 +158,7 @@ def run_table1(scale: str, out: Path, seed: int = 0, only: list[str] | None = No
     atomic_write_json(out / f"table1_{scale}.json", doc)
     with atomic_open(out / f"table1_{scale}.md", "w") as f:
         f.write(render_markdown(doc, scale))
-    plot_differences(out, [r for r in rows() if r.name in doc["config"]["rows"]], scale)
+    plot_differences(out, work, [r for r in rows() if r.name in doc["config"]["rows"]], scale)
     return doc
 
 
@@ -186,7 +191,7 @@ def render_markdown(doc: dict[str, Any], scale: str) -> str:
     return "\n".join(lines)
 
 
-def plot_differences(out: Path, todo: list[Row], scale: str) -> None:
+def plot_differences(out: Path, work: Path, todo: list[Row], scale: str) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -195,7 +200,7 @@ def plot_differences(out: Path, todo: list[Row], scale: str) -> None:
     fig, ax = plt.subplots(figsize=(8, 4.5))
     bins = np.arange(-0.5, 101.5, 2)
     for r in todo:
-        f = out / _slug(r.name) / "eval.npz"
+        f = work / _slug(r.name) / "eval.npz"
         if r.grid.moving or not f.exists():
             continue
         z = np.load(f)
