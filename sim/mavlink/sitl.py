@@ -93,8 +93,9 @@ class Sitl:
             from sim.vehicle.field import Field
 
             cid = self.model.cid
-            # the PyBullet world is centred on the spawn point: shift the field by -spawn
-            self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed)
+            # the PyBullet world is centred on the spawn point: the field is shifted to match
+            self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed,
+                                origin=self.episode.agent[0])
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
             camera = self._render
         self.tlog = TlogWriter(cfg.tlog) if cfg.tlog else None
@@ -105,6 +106,10 @@ class Sitl:
                                  log_outgoing=False))
         self.gps = GpsModel(self.home, cfg.seed, GpsConfig())
         self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera)
+        if cfg.speedup > 1:
+            # companions pace their setpoint streams in wall-clock time: keep the offboard-loss
+            # timeout at about a second of *their* time when the simulation runs faster
+            self.vehicle.params.set("COM_OF_LOSS_T", min(60.0, cfg.speedup))
         self.t = 0.0
         self.errors: list[str] = []
         self._stop = threading.Event()
@@ -130,8 +135,7 @@ class Sitl:
 
     def _update_targets(self) -> None:
         if self._field is not None:
-            cells = self.target_cells() - self.episode.agent[0]  # world is centred on the spawn
-            self._field.set_targets(cells)
+            self._field.set_targets(self.target_cells())
 
     def _render(self, position_ned: np.ndarray, yaw: float) -> np.ndarray:
         self._update_targets()

@@ -126,11 +126,19 @@ class MavlinkVehicle:
             if mode == "AUTO.LOITER" or mode in ("POSCTL", "ALTCTL", "MANUAL", "STABILIZED"):
                 self._hold_here()
 
+    def estimate(self) -> np.ndarray:
+        """The autopilot's position estimate: truth plus the GPS error it cannot see (what an
+        EKF fed by this GPS converges to). Targets are flown in this frame, as on a real drone."""
+        return self.model.state.position_ned + self.gps.bias
+
+    def _command_model(self, target_est: np.ndarray, yaw: float | None = None, speed: float | None = None) -> None:
+        self.model.set_position_target(np.asarray(target_est, float) - self.gps.bias, yaw=yaw, speed=speed)
+
     def _hold_here(self) -> None:
         s = self.model.state
-        self._target = s.position_ned.copy()
+        self._target = self.estimate()
         if s.armed and not s.landed:
-            self.model.set_position_target(self._target, speed=self.params["MPC_XY_VEL_MAX"])
+            self._command_model(self._target, speed=self.params["MPC_XY_VEL_MAX"])
 
     def _goto(self, ned: np.ndarray, speed: float | None = None) -> bool:
         if not self.fence().allows(ned):
@@ -138,7 +146,7 @@ class MavlinkVehicle:
             self.statustext(f"Geofence: target {ned[0]:.0f},{ned[1]:.0f},{-ned[2]:.0f} m rejected", M.MAV_SEVERITY_WARNING)
             return False
         self._target = np.asarray(ned, dtype=float).copy()
-        self.model.set_position_target(self._target, speed=speed or self.params["MPC_XY_CRUISE"])
+        self._command_model(self._target, speed=speed or self.params["MPC_XY_CRUISE"])
         return True
 
     def _item_ned(self, item: MissionItem) -> np.ndarray:
@@ -169,18 +177,18 @@ class MavlinkVehicle:
         if not s.armed:
             return
         if self.mode == "AUTO.TAKEOFF" and self._target is not None:
-            if abs(s.position_ned[2] - self._target[2]) < 0.3:
+            if abs(self.estimate()[2] - self._target[2]) < 0.3:
                 self._set_mode("AUTO.LOITER")
         elif self.mode == "AUTO.MISSION":
             self._fly_mission()
         elif self.mode == "AUTO.RTL":
             alt = -self.params["RTL_RETURN_ALT"]
-            p = s.position_ned
+            p = self.estimate()
             if self._rtl_phase == 0:
-                self.model.set_position_target(np.array([p[0], p[1], min(p[2], alt)]))
+                self._command_model(np.array([p[0], p[1], min(p[2], alt)]))
                 self._rtl_phase = 1
             elif self._rtl_phase == 1 and p[2] <= min(p[2], alt) + 0.3:
-                self.model.set_position_target(np.array([0.0, 0.0, min(p[2], alt)]), speed=self.params["MPC_XY_CRUISE"])
+                self._command_model(np.array([0.0, 0.0, min(p[2], alt)]), speed=self.params["MPC_XY_CRUISE"])
                 self._rtl_phase = 2
             elif self._rtl_phase == 2 and np.hypot(p[0], p[1]) < self.params["NAV_ACC_RAD"]:
                 self.model.land()
@@ -214,12 +222,12 @@ class MavlinkVehicle:
             return
         goal = self._item_ned(item)
         if item.command == M.MAV_CMD_NAV_TAKEOFF:
-            goal[:2] = s.position_ned[:2] if self._target is None else self._target[:2]
+            goal[:2] = self.estimate()[:2] if self._target is None else self._target[:2]
         if self._target is None or not np.allclose(self._target, goal):
             if not self._goto(goal):
                 self._set_mode("AUTO.LOITER")
                 return
-        if np.linalg.norm(s.position_ned - goal) < max(self.params["NAV_ACC_RAD"], 0.3):
+        if np.linalg.norm(self.estimate() - goal) < max(self.params["NAV_ACC_RAD"], 0.3):
             self._advance(item)
 
     def _advance(self, item: MissionItem) -> None:
@@ -263,14 +271,14 @@ class MavlinkVehicle:
                                              0, int(f.eph_m * 1000), int(f.epv_m * 1000), 300, 0))
         elif msg_id == M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
             # the autopilot's estimate: truth plus the GPS bias (what an EKF fed by GPS converges to)
-            est = s.position_ned + self.gps.bias
+            est = self.estimate()
             lat, lon, alt = self.home.ned_to_geodetic(est)
             v = s.velocity_ned
             hdg = int((math.degrees(s.attitude_rpy[2]) % 360) * 100)
             self.send(mav.global_position_int_encode(tb, to_e7(lat), to_e7(lon), int(alt * 1000), int(-est[2] * 1000),
                                                      int(v[0] * 100), int(v[1] * 100), int(v[2] * 100), hdg))
         elif msg_id == M.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
-            est = s.position_ned + self.gps.bias
+            est = self.estimate()
             v = s.velocity_ned
             self.send(mav.local_position_ned_encode(tb, *map(float, est), *map(float, v)))
         elif msg_id == M.MAVLINK_MSG_ID_ATTITUDE:
@@ -357,7 +365,7 @@ class MavlinkVehicle:
                     return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
                 ok = self.model.arm()
                 if ok and s.landed:
-                    self._target = s.position_ned.copy()
+                    self._target = self.estimate()
                 return self._ack(cmd, R.MAV_RESULT_ACCEPTED if ok else R.MAV_RESULT_DENIED, msg)
             ok = self.model.disarm(force=force)
             if not ok:
@@ -367,7 +375,7 @@ class MavlinkVehicle:
             name = px4_mode_name(q[1], q[2]) if q[0] & R.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED else None
             if name is None:
                 return self._ack(cmd, R.MAV_RESULT_UNSUPPORTED, msg)
-            if name == "OFFBOARD" and self.t - self._offboard_t > 0.5:
+            if name == "OFFBOARD" and self.t - self._offboard_t > self.params["COM_OF_LOSS_T"]:
                 self.statustext("Offboard denied: stream setpoints first", M.MAV_SEVERITY_WARNING)
                 return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
             if name == "AUTO.MISSION" and not self.mission.items:
@@ -379,7 +387,8 @@ class MavlinkVehicle:
             rel = self.params["MIS_TAKEOFF_ALT"] if not math.isfinite(p[6]) else p[6] - self.home.alt_m
             if rel <= 0.3:
                 rel = self.params["MIS_TAKEOFF_ALT"]
-            goal = np.array([s.position_ned[0], s.position_ned[1], -rel])
+            est = self.estimate()
+            goal = np.array([est[0], est[1], -rel])
             if not self._goto(goal, speed=self.params["MPC_XY_CRUISE"]):
                 return self._ack(cmd, R.MAV_RESULT_DENIED, msg)
             self.mode = "AUTO.TAKEOFF"
@@ -403,7 +412,7 @@ class MavlinkVehicle:
                 return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
             lat = p[4] * 1e-7 if is_int else p[4]
             lon = p[5] * 1e-7 if is_int else p[5]
-            ned = s.position_ned.copy()
+            ned = self.estimate()
             if math.isfinite(lat) and math.isfinite(lon):
                 ned[:2] = self.home.geodetic_to_ned(lat, lon, self.home.alt_m)[:2]
             if math.isfinite(p[6]):
@@ -417,7 +426,7 @@ class MavlinkVehicle:
         if cmd == R.MAV_CMD_DO_CHANGE_SPEED:
             ok, why = self.params.set("MPC_XY_CRUISE", float(p[1]))
             if ok and self._target is not None and s.armed and not s.landed:
-                self.model.set_position_target(self._target, speed=float(p[1]))
+                self._command_model(self._target, speed=float(p[1]))
             return self._ack(cmd, R.MAV_RESULT_ACCEPTED if ok else R.MAV_RESULT_DENIED, msg)
         if cmd == R.MAV_CMD_SET_MESSAGE_INTERVAL:
             msg_id, interval = q[0], p[1]
@@ -475,7 +484,7 @@ class MavlinkVehicle:
                 return
             yaw_v = None if mask & M.POSITION_TARGET_TYPEMASK_YAW_IGNORE else yaw
             self._target = pos
-            self.model.set_position_target(pos, yaw=yaw_v, speed=self.params["MPC_XY_VEL_MAX"])
+            self._command_model(pos, yaw=yaw_v, speed=self.params["MPC_XY_VEL_MAX"])
         elif not (mask & M.POSITION_TARGET_TYPEMASK_VX_IGNORE):
             self.model.set_velocity_target(vel)
 

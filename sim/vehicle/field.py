@@ -46,12 +46,14 @@ def cell_to_enu(cells: np.ndarray, cell_m: float = DEFAULT_CELL_M) -> np.ndarray
 
 class Field:
     def __init__(self, client: int, width: int, height: int, n_targets: int, cell_m: float = DEFAULT_CELL_M,
-                 seed: int = 0, margin_cells: int = 4) -> None:
+                 seed: int = 0, margin_cells: int = 4, origin: np.ndarray | None = None) -> None:
+        """origin: the cell at the PyBullet world's origin (SITL puts the spawn cell there)."""
         self.cid, self.w, self.h, self.cell_m = client, width, height, cell_m
+        self.origin = np.zeros(2) if origin is None else np.asarray(origin, dtype=float)
         self.rng = np.random.default_rng([seed, 0xC0A7])
         # the grass covers the grid plus a margin, so the camera never sees the void
         half = [(width + 2 * margin_cells) * cell_m / 2, (height + 2 * margin_cells) * cell_m / 2, 0.01]
-        centre = cell_to_enu(np.array([(width - 1) / 2, (height - 1) / 2]), cell_m)
+        centre = cell_to_enu(np.array([(width - 1) / 2, (height - 1) / 2]) - self.origin, cell_m)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(GRASS), physicsClientId=client)
         self.ground = p.createMultiBody(0, -1, vis, [centre[0], centre[1], -0.008], physicsClientId=client)
         names = list(COATS)
@@ -69,7 +71,7 @@ class Field:
             raise ValueError(f"field has {len(self.cows)} targets, got {len(cells)} cells")
         if headings is not None:
             self.headings = np.asarray(headings, dtype=float)
-        pos = cell_to_enu(cells, self.cell_m)
+        pos = cell_to_enu(cells - self.origin, self.cell_m)
         for body, xyz, yaw in zip(self.cows, pos, self.headings, strict=True):
             q = p.getQuaternionFromEuler([0, 0, float(yaw)])
             p.resetBasePositionAndOrientation(body, [float(xyz[0]), float(xyz[1]), 0.0], q, physicsClientId=self.cid)

@@ -9,7 +9,7 @@ import pytest
 from plain_gcs import Gcs, M
 from pymavlink import mavutil
 
-from sim.mavlink import FrameAssembler
+from autopilot_bridge.images import FrameAssembler
 
 
 def _upload(g: Gcs, items) -> int:
