@@ -1,8 +1,9 @@
 """`uavsearch demo`: the main job on embedded defaults.
 
-Today it evaluates the built-in policies on the paper's base case (static, random targets,
-10 x 10, 5 targets) and prints Table I's columns; once the vehicle and the policy service are
-wired it will fly the search on the simulated quadrotor too.
+1. The evaluation table: the built-in policies, the shipped networks among them, on the
+   paper's base case (static random targets, 10 x 10, 5 targets), every Table I column.
+2. The flight: a simulated PX4-style quadrotor (PyBullet) and the companion computer's policy
+   service searching its field over MAVLink with the shipped policy; report, plot and .tlog.
 """
 
 from __future__ import annotations
@@ -18,11 +19,13 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def demo(
         episodes: int = typer.Option(1000, min=1, help="Test episodes per policy."),
-        seed: int = typer.Option(2018, help="Seed of the test episodes."),
+        seed: int = typer.Option(2018, help="Seed of the test episodes and of the flight's field."),
         out: Path = typer.Option(Path("out/demo"), help="Where the report goes."),
+        fly: bool = typer.Option(True, "--fly/--no-fly", help="Also fly the search on the SITL vehicle."),
+        speedup: float = typer.Option(10.0, help="Simulation speed-up for the flight."),
     ) -> None:
-        """Evaluate the built-in policies on the base case and write a report."""
-        from policy.baselines.registry import known_policies
+        """Evaluate the policies, then fly a search on the simulated vehicle; write a report."""
+        from policy.baselines import known_policies
         from policy.evaluation import run_eval
         from policy.nn import shipped_checkpoint
         from sim.gridworld import GridConfig
@@ -32,4 +35,14 @@ def register(app: typer.Typer) -> None:
             if net in known_policies() and shipped_checkpoint(f"{net}_static_random").exists():
                 names.append(net)
         run_eval(names, GridConfig(), episodes, seed, out)
-        typer.echo(f"report: {out.resolve()}")
+        typer.echo(f"evaluation report: {out.resolve()}/table.md")
+        if fly:
+            from missions.flight import fly_search
+
+            typer.echo("flying the search on the SITL vehicle (PyBullet, MAVLink, shipped policy)...")
+            r = fly_search(out / "flight", seed=seed, speedup=speedup)
+            found = f"{r['truly_found']}/{r['targets']} targets found (truth), {r['believed_found']} believed"
+            typer.echo(f"flight: {r['moves']} moves (optimal {r['optimal_moves']}), {found}, "
+                       f"{r['simulated_s']:.0f} s simulated in {r['wall_s']:.0f} s"
+                       + (f"; error: {r['error']}" if r["error"] else ""))
+            typer.echo(f"flight report: {(out / 'flight').resolve()}/report.json, search.png, flight.tlog")
