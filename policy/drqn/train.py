@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import copy
 import io
-import pickle
-import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -19,7 +17,7 @@ from tqdm import tqdm
 from provenance import atomic_write_bytes, git_revision
 from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
 
-from ..nn.checkpoint import CheckpointError
+from ..nn.checkpoint import CheckpointError, read_torch_document
 from .model import Drqn, drqn_view
 
 FORMAT = "uavsearch-drqn/1"
@@ -71,15 +69,7 @@ def save_drqn(path: Path, net: Drqn, cfg: DrqnConfig, grid: GridConfig, seed: in
 
 
 def load_drqn(path: str | Path) -> tuple[Drqn, dict]:
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: no such checkpoint file")
-    try:
-        doc = torch.load(path, map_location="cpu", weights_only=False)
-    except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError) as e:
-        raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") from e
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise CheckpointError(f"{path}: not a DRQN checkpoint")
+    doc = read_torch_document(path, FORMAT, ("drqn_config", "grid_config", "state_dict"))
     cfg = DrqnConfig(**doc["drqn_config"])
     net = Drqn(GridConfig.from_dict(doc["grid_config"]).n_actions, cfg.image)
     try:

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .pt import backtrack
+
 #: how far ahead an interception is searched; a 10 x 10 target fleeing at 1/3 speed is
 #: always caught within ~27 steps, so 64 leaves room for larger grids and slower agents.
 WINDOW = 64
@@ -72,12 +74,4 @@ def lookahead_dp(
             parent[:, mask, j] = arg
     key = dp[:, full, :] + noise[:, full, :]
     cur = key.argmin(axis=1)
-    lengths = dp[rows, full, cur]
-    orders = np.empty((n, r), dtype=np.int64)
-    mask = np.full(n, full)
-    for kk in range(r - 1, -1, -1):
-        orders[:, kk] = cur
-        prev = parent[rows, mask, cur].astype(np.int64)
-        mask = mask ^ (1 << cur)
-        cur = prev
-    return lengths, orders
+    return dp[rows, full, cur], backtrack(parent, cur)

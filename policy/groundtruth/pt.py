@@ -42,17 +42,23 @@ def held_karp(
             best = cand.argmin(axis=1)
             dp[:, mask, j] = cand[np.arange(n), best]
             parent[:, mask, j] = best
-    last = dp[:, full, :].argmin(axis=1)
+    orders = backtrack(parent, dp[:, full, :].argmin(axis=1))
+    return path_lengths(start, targets, orders), orders
+
+
+def backtrack(parent: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Orders (n, R) from a subset DP's parent table (n, 2^R, R) and each episode's last target."""
+    n, _, r = parent.shape
     orders = np.empty((n, r), dtype=np.int64)
-    mask = np.full(n, full)
+    mask = np.full(n, (1 << r) - 1)
     rows = np.arange(n)
-    cur = last
+    cur = last.astype(np.int64)
     for k in range(r - 1, -1, -1):
         orders[:, k] = cur
-        prev = parent[rows, mask, cur]
+        prev = parent[rows, mask, cur].astype(np.int64)
         mask = mask ^ (1 << cur)
-        cur = prev.astype(np.int64)
-    return path_lengths(start, targets, orders), orders
+        cur = prev
+    return orders
 
 
 def path_lengths(start: np.ndarray, targets: np.ndarray, orders: np.ndarray) -> np.ndarray:

@@ -40,7 +40,8 @@ def save_checkpoint(path: str | Path, model: nn.Module, model_cfg: ModelConfig, 
     return Path(path)
 
 
-def read_checkpoint(path: str | Path) -> dict[str, Any]:
+def read_torch_document(path: str | Path, fmt: str, required: tuple[str, ...]) -> dict[str, Any]:
+    """Load a torch-saved dict and check its format tag and keys; any failure is a CheckpointError."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
@@ -48,12 +49,17 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
         doc = torch.load(path, map_location="cpu", weights_only=False)
     except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError) as e:
         raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") from e
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise CheckpointError(f"{path}: not a uavsearch checkpoint (format {doc.get('format') if isinstance(doc, dict) else None!r})")
-    for key in ("model_config", "state_dict"):
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        found = doc.get("format") if isinstance(doc, dict) else None
+        raise CheckpointError(f"{path}: not a uavsearch checkpoint of format {fmt!r} (found {found!r})")
+    for key in required:
         if key not in doc:
             raise CheckpointError(f"{path}: missing {key!r}")
     return doc
+
+
+def read_checkpoint(path: str | Path) -> dict[str, Any]:
+    return read_torch_document(path, FORMAT, ("model_config", "state_dict"))
 
 
 def load_model(path: str | Path, expect: ModelConfig | None = None) -> tuple[nn.Module, dict[str, Any]]:
