@@ -207,3 +207,38 @@ def test_camera_frames_over_image_transmission_and_tlog(sitl_factory, tmp_path) 
     while (m := log.recv_match()) is not None:
         kinds.add(m.get_type())
     assert {"HEARTBEAT", "GPS_RAW_INT", "COMMAND_LONG", "COMMAND_ACK"} <= kinds
+
+
+def test_mission_clear_set_current_and_global_offboard_setpoints(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        home = g.recv("HOME_POSITION", 5)
+        lat0, lon0 = home.latitude * 1e-7, home.longitude * 1e-7
+        items = [_item(g, i, M.MAV_CMD_NAV_WAYPOINT, lat0 + i * 1e-5, lon0, 3.5) for i in range(3)]
+        assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
+        g.c.mav.mission_set_current_send(1, 1, 2)
+        assert g.recv("MISSION_CURRENT", 3, lambda m: m.seq == 2) is not None
+        g.c.mav.mission_clear_all_send(1, 1, M.MAV_MISSION_TYPE_MISSION)
+        assert g.recv("MISSION_ACK", 3).type == M.MAV_MISSION_ACCEPTED
+        g.c.mav.mission_request_list_send(1, 1, M.MAV_MISSION_TYPE_MISSION)
+        assert g.recv("MISSION_COUNT", 3).count == 0
+        # OFFBOARD with global setpoints: stream first, then switch, then fly there
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        goal_lat = lat0 + 6 / 111_200.0
+        ignore_vel_acc = 0b0000_1111_1111_1000
+        for _ in range(3):
+            g.c.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore_vel_acc,
+                                                        int(goal_lat * 1e7), int(lon0 * 1e7), 4.0, 0, 0, 0, 0, 0, 0, 0, 0)
+            time.sleep(0.02)
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0).result == M.MAV_RESULT_ACCEPTED
+        end = time.monotonic() + 10
+        while time.monotonic() < end and np.linalg.norm(sitl.vehicle.estimate() - [6.0, 0.0, -4.0]) > 0.3:
+            g.c.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore_vel_acc,
+                                                        int(goal_lat * 1e7), int(lon0 * 1e7), 4.0, 0, 0, 0, 0, 0, 0, 0, 0)
+            time.sleep(0.05)
+        assert np.linalg.norm(sitl.vehicle.estimate() - [6.0, 0.0, -4.0]) < 0.3
+    finally:
+        g.close()
