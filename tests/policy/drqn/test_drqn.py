@@ -77,3 +77,11 @@ def test_short_training_checkpoint_and_policy(tmp_path: Path) -> None:
     (tmp_path / "bad.pt").write_bytes(data[:100])
     with pytest.raises(CheckpointError):
         load_drqn(tmp_path / "bad.pt")
+
+
+def test_shipped_checkpoint_plays_in_the_harness() -> None:
+    from policy.baselines import make_policy
+
+    cfg = GridConfig()
+    r = evaluate(make_policy("drqn", cfg), cfg, 20, seed=3, progress=False)
+    assert r.moves.shape == (20,) and (r.moves >= r.optimal).all()

@@ -1,4 +1,5 @@
 import itertools
+import socket
 
 import pytest
 
@@ -7,14 +8,24 @@ from sim.mavlink import Sitl, SitlConfig
 _instances = itertools.count(11)
 
 
+def free_udp_port() -> int:
+    """A UDP port the OS has just handed out, so parallel tests and vehicles never meet."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 @pytest.fixture
 def sitl_factory():
-    """Start SITL vehicles on their own instance ports; stop them after the test."""
+    """Start SITL vehicles on ports of their own; stop them after the test."""
     started: list[Sitl] = []
 
     def make(**kw) -> Sitl:
         kw.setdefault("speedup", 6.0)
-        s = Sitl(SitlConfig(instance=next(_instances), **kw)).start()
+        kw.setdefault("instance", next(_instances) % 40)
+        for name in ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port"):
+            kw.setdefault(name, free_udp_port())
+        s = Sitl(SitlConfig(**kw)).start()
         started.append(s)
         return s
 

@@ -10,12 +10,21 @@ M = mavutil.mavlink
 
 
 class Gcs:
-    def __init__(self, port: int, signing_key: bytes | None = None) -> None:
+    def __init__(self, port: int, signing_key: bytes | None = None, sysid: int | None = None) -> None:
         self.c = mavutil.mavlink_connection(f"udpin:0.0.0.0:{port}", source_system=255, source_component=190)
         if signing_key is not None:
             self.c.setup_signing(signing_key, sign_outgoing=True)
-        self.c.wait_heartbeat(timeout=10)
         self.texts: list[str] = []  # every STATUSTEXT seen, whatever was being waited for
+        if sysid is None:
+            hb = self.c.wait_heartbeat(timeout=10)
+            assert hb is not None, "no vehicle heartbeat"
+            sysid = hb.get_srcSystem()
+        else:  # learn the vehicle's address from any datagram, even one we cannot verify
+            end = time.monotonic() + 5
+            while not self.c.clients and time.monotonic() < end:
+                self.c.recv_msg()
+                time.sleep(0.01)
+        self.sysid = sysid
 
     def recv(self, kind, timeout: float = 5.0, cond=None):
         end = time.monotonic() + timeout
@@ -32,7 +41,7 @@ class Gcs:
 
     def command(self, cmd: int, *params: float, timeout: float = 3.0):
         p = list(params) + [0.0] * (7 - len(params))
-        self.c.mav.command_long_send(1, 1, cmd, 0, *p)
+        self.c.mav.command_long_send(self.sysid, 1, cmd, 0, *p)
         return self.recv("COMMAND_ACK", timeout, lambda a: a.command == cmd)
 
     def close(self) -> None:

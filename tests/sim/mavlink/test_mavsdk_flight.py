@@ -9,6 +9,7 @@ from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission import MissionAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.plugins.mission import MissionItem, MissionPlan
+from mavsdk.plugins.telemetry import FlightMode
 
 
 async def _until(pred, timeout: float, what: str) -> None:
@@ -31,9 +32,12 @@ def test_mavsdk_connect_health_arm_takeoff_mission_land_disarm(sitl_factory) -> 
             assert system is not None, "MAVSDK discovered no autopilot"
             tel, act, mis = TelemetryAsync(system), ActionAsync(system), MissionAsync(system)
             await _until(tel.health_all_ok, 15, "health all ok")
-            health = await tel.health()
-            assert health.is_global_position_ok and health.is_home_position_ok and health.is_armable
+            h = await tel.health()
+            assert all([h.is_gyrometer_calibration_ok, h.is_accelerometer_calibration_ok,
+                        h.is_magnetometer_calibration_ok, h.is_local_position_ok, h.is_global_position_ok,
+                        h.is_home_position_ok, h.is_armable]), h
             home = await tel.home()
+            assert abs(home.latitude_deg - sitl.home.lat_deg) < 1e-6, "home as the vehicle set it"
             await act.arm()
             await _until(tel.armed, 5, "armed")
             await act.set_takeoff_altitude(3.5)
@@ -51,13 +55,15 @@ def test_mavsdk_connect_health_arm_takeoff_mission_land_disarm(sitl_factory) -> 
             ]
             await mis.upload_mission(MissionPlan(items))
             await mis.start_mission()
-            visited = []
+            visited, modes = [], set()
 
             async def finished() -> bool:
                 visited.append(sitl.model.state.position_ned.copy())
+                modes.add(await tel.flight_mode())
                 return await mis.is_mission_finished()
 
             await _until(finished, 60, "mission finished")
+            assert FlightMode.MISSION in modes, modes  # PX4's AUTO.MISSION, as MAVSDK decodes it
             # telemetry agrees with the physics (within the GPS error)
             pos = await tel.position()
             truth = sitl.model.state.position_ned

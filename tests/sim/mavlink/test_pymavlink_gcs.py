@@ -2,7 +2,10 @@
 
 import math
 import socket
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,10 +13,11 @@ from plain_gcs import Gcs, M
 from pymavlink import mavutil
 
 from autopilot_bridge.images import FrameAssembler
+from sim.mavlink import Geofence
 
 
 def _upload(g: Gcs, items) -> int:
-    g.c.mav.mission_count_send(1, 1, len(items), M.MAV_MISSION_TYPE_MISSION)
+    g.c.mav.mission_count_send(g.sysid, 1, len(items), M.MAV_MISSION_TYPE_MISSION)
     while True:
         m = g.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5)
         assert m is not None, "vehicle stopped asking for items"
@@ -23,7 +27,7 @@ def _upload(g: Gcs, items) -> int:
 
 
 def _item(g: Gcs, seq: int, cmd: int, lat: float, lon: float, alt: float):
-    return g.c.mav.mission_item_int_encode(1, 1, seq, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, cmd, 0, 1, 0, 0.5, 0, math.nan,
+    return g.c.mav.mission_item_int_encode(g.sysid, 1, seq, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, cmd, 0, 1, 0, 0.5, 0, math.nan,
                                            int(lat * 1e7), int(lon * 1e7), alt, M.MAV_MISSION_TYPE_MISSION)
 
 
@@ -41,13 +45,13 @@ def test_pymavlink_flight_and_mission_download(sitl_factory) -> None:
         ] + [_item(g, 5, M.MAV_CMD_NAV_LAND, lat0, lon0, 0)]
         assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
         # download equals upload
-        g.c.mav.mission_request_list_send(1, 1, M.MAV_MISSION_TYPE_MISSION)
+        g.c.mav.mission_request_list_send(g.sysid, 1, M.MAV_MISSION_TYPE_MISSION)
         count = g.recv("MISSION_COUNT", 5).count
         got = []
         for i in range(count):
-            g.c.mav.mission_request_int_send(1, 1, i, M.MAV_MISSION_TYPE_MISSION)
+            g.c.mav.mission_request_int_send(g.sysid, 1, i, M.MAV_MISSION_TYPE_MISSION)
             got.append(g.recv("MISSION_ITEM_INT", 5, lambda m, i=i: m.seq == i))
-        g.c.mav.mission_ack_send(1, 1, M.MAV_MISSION_ACCEPTED, M.MAV_MISSION_TYPE_MISSION)
+        g.c.mav.mission_ack_send(g.sysid, 1, M.MAV_MISSION_ACCEPTED, M.MAV_MISSION_TYPE_MISSION)
         assert [(m.command, m.x, m.y, m.z) for m in got] == [(m.command, m.x, m.y, m.z) for m in items]
 
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
@@ -121,7 +125,7 @@ def test_parameters_list_read_set_and_bad_values(sitl_factory) -> None:
     sitl = sitl_factory(physics="kinematic")
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
-        g.c.mav.param_request_list_send(1, 1)
+        g.c.mav.param_request_list_send(g.sysid, 1)
         names = set()
         first = g.recv("PARAM_VALUE", 3)
         names.add(first.param_id)
@@ -130,12 +134,12 @@ def test_parameters_list_read_set_and_bad_values(sitl_factory) -> None:
             assert m is not None
             names.add(m.param_id)
         assert {"MIS_TAKEOFF_ALT", "NAV_ACC_RAD", "GF_MAX_HOR_DIST"} <= names
-        g.c.mav.param_set_send(1, 1, b"NAV_ACC_RAD", 0.8, M.MAV_PARAM_TYPE_REAL32)
+        g.c.mav.param_set_send(g.sysid, 1, b"NAV_ACC_RAD", 0.8, M.MAV_PARAM_TYPE_REAL32)
         assert g.recv("PARAM_VALUE", 3, lambda m: m.param_id == "NAV_ACC_RAD").param_value == pytest.approx(0.8)
-        g.c.mav.param_set_send(1, 1, b"NAV_ACC_RAD", -5.0, M.MAV_PARAM_TYPE_REAL32)
+        g.c.mav.param_set_send(g.sysid, 1, b"NAV_ACC_RAD", -5.0, M.MAV_PARAM_TYPE_REAL32)
         echo = g.recv("PARAM_VALUE", 3, lambda m: m.param_id == "NAV_ACC_RAD")
         assert echo.param_value == pytest.approx(0.8), "a bad value is refused and the old one kept"
-        g.c.mav.param_request_read_send(1, 1, b"MIS_TAKEOFF_ALT", -1)
+        g.c.mav.param_request_read_send(g.sysid, 1, b"MIS_TAKEOFF_ALT", -1)
         assert g.recv("PARAM_VALUE", 3, lambda m: m.param_id == "MIS_TAKEOFF_ALT").param_value == pytest.approx(3.5)
     finally:
         g.close()
@@ -146,7 +150,7 @@ def test_malformed_bytes_are_counted_and_survived(sitl_factory) -> None:
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        good = g.c.mav.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0).pack(g.c.mav)
+        good = g.c.mav.command_long_encode(g.sysid, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0).pack(g.c.mav)
         bad_crc = bytearray(good)
         bad_crc[-1] ^= 0xFF
         for junk in (b"\x00" * 40, bytes(range(256)), bytes(bad_crc), good[: len(good) // 2], b"\xfd\xff"):
@@ -169,16 +173,24 @@ def test_signing_rejects_unsigned_commands(sitl_factory) -> None:
         assert sitl.vehicle.links[1].stats.rejected_unsigned >= 1
     finally:
         unsigned.close()
-    signed = Gcs(sitl.cfg.gcs_ports[1], signing_key=key)
+    signed = Gcs(sitl.cfg.gcs_ports[1], signing_key=key)  # verifies the vehicle's signed heartbeat
     try:
+        assert signed.c.recv_match(type="HEARTBEAT", blocking=True, timeout=3).get_signed()
         assert signed.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
         assert sitl.model.state.armed
+        signed.c.mav.param_request_read_send(signed.sysid, 1, b"UAVS_SIGNING", -1)
+        assert signed.recv("PARAM_VALUE", 3, lambda m: m.param_id == "UAVS_SIGNING").param_value == 1.0
+        signed.c.mav.param_set_send(signed.sysid, 1, b"UAVS_SIGNING", 0.0, M.MAV_PARAM_TYPE_REAL32)
+        echo = signed.recv("PARAM_VALUE", 3, lambda m: m.param_id == "UAVS_SIGNING")
+        assert echo.param_value == 1.0, "signing cannot be switched off over the link"
     finally:
         signed.close()
-    wrong = Gcs(sitl.cfg.gcs_ports[1], signing_key=bytes(32))
+    rejected = sitl.vehicle.links[1].stats.rejected_unsigned
+    wrong = Gcs(sitl.cfg.gcs_ports[1], signing_key=bytes(32), sysid=sitl.cfg.sysid)
     try:
         assert wrong.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196, timeout=1.5) is None
         assert sitl.model.state.armed, "a wrongly signed disarm is not executed"
+        assert sitl.vehicle.links[1].stats.rejected_unsigned > rejected
     finally:
         wrong.close()
 
@@ -206,7 +218,10 @@ def test_camera_frames_over_image_transmission_and_tlog(sitl_factory, tmp_path) 
     kinds = set()
     while (m := log.recv_match()) is not None:
         kinds.add(m.get_type())
-    assert {"HEARTBEAT", "GPS_RAW_INT", "COMMAND_LONG", "COMMAND_ACK"} <= kinds
+    assert {"HEARTBEAT", "GPS_RAW_INT", "COMMAND_LONG", "COMMAND_ACK", "ENCAPSULATED_DATA"} <= kinds
+    dump = subprocess.run([sys.executable, str(Path(sys.executable).with_name("mavlogdump.py")), "--types", "COMMAND_ACK",
+                           str(tlog)], capture_output=True, text=True, timeout=60)
+    assert dump.returncode == 0 and "COMMAND_ACK" in dump.stdout, dump.stderr[-500:]
 
 
 def test_mission_clear_set_current_and_global_offboard_setpoints(sitl_factory) -> None:
@@ -217,11 +232,11 @@ def test_mission_clear_set_current_and_global_offboard_setpoints(sitl_factory) -
         lat0, lon0 = home.latitude * 1e-7, home.longitude * 1e-7
         items = [_item(g, i, M.MAV_CMD_NAV_WAYPOINT, lat0 + i * 1e-5, lon0, 3.5) for i in range(3)]
         assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
-        g.c.mav.mission_set_current_send(1, 1, 2)
+        g.c.mav.mission_set_current_send(g.sysid, 1, 2)
         assert g.recv("MISSION_CURRENT", 3, lambda m: m.seq == 2) is not None
-        g.c.mav.mission_clear_all_send(1, 1, M.MAV_MISSION_TYPE_MISSION)
+        g.c.mav.mission_clear_all_send(g.sysid, 1, M.MAV_MISSION_TYPE_MISSION)
         assert g.recv("MISSION_ACK", 3).type == M.MAV_MISSION_ACCEPTED
-        g.c.mav.mission_request_list_send(1, 1, M.MAV_MISSION_TYPE_MISSION)
+        g.c.mav.mission_request_list_send(g.sysid, 1, M.MAV_MISSION_TYPE_MISSION)
         assert g.recv("MISSION_COUNT", 3).count == 0
         # OFFBOARD with global setpoints: stream first, then switch, then fly there
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
@@ -230,15 +245,67 @@ def test_mission_clear_set_current_and_global_offboard_setpoints(sitl_factory) -
         goal_lat = lat0 + 6 / 111_200.0
         ignore_vel_acc = 0b0000_1111_1111_1000
         for _ in range(3):
-            g.c.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore_vel_acc,
+            g.c.mav.set_position_target_global_int_send(0, g.sysid, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore_vel_acc,
                                                         int(goal_lat * 1e7), int(lon0 * 1e7), 4.0, 0, 0, 0, 0, 0, 0, 0, 0)
             time.sleep(0.02)
         assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0).result == M.MAV_RESULT_ACCEPTED
         end = time.monotonic() + 10
         while time.monotonic() < end and np.linalg.norm(sitl.vehicle.estimate() - [6.0, 0.0, -4.0]) > 0.3:
-            g.c.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore_vel_acc,
+            g.c.mav.set_position_target_global_int_send(0, g.sysid, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore_vel_acc,
                                                         int(goal_lat * 1e7), int(lon0 * 1e7), 4.0, 0, 0, 0, 0, 0, 0, 0, 0)
             time.sleep(0.05)
         assert np.linalg.norm(sitl.vehicle.estimate() - [6.0, 0.0, -4.0]) < 0.3
+    finally:
+        g.close()
+
+
+def test_velocity_setpoints_stop_at_the_geofence(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic", geofence=Geofence(max_horizontal_m=12.0, max_altitude_m=10.0))
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        vel_only = 0b0000_1101_1100_0111  # ignore position, acceleration, yaw, yaw rate
+
+        def north(n: int) -> None:
+            for _ in range(n):
+                g.c.mav.set_position_target_local_ned_send(0, g.sysid, 1, M.MAV_FRAME_LOCAL_NED, vel_only,
+                                                           0, 0, 0, 4.0, 0, 0, 0, 0, 0, 0, 0)
+                time.sleep(0.05)
+
+        north(3)
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0).result == M.MAV_RESULT_ACCEPTED
+        furthest = 0.0
+        for _ in range(40):  # ~ 2 s wall, 12 s simulated: far beyond the fence at 4 m/s
+            north(1)
+            furthest = max(furthest, float(np.hypot(*sitl.model.state.position_ned[:2])))
+        assert 5.0 < furthest <= 12.0 + 2.0, furthest  # it flew north, and stopped at the fence (+ GPS bias)
+        assert any("Geofence breach" in t for t in g.texts) or g.recv("STATUSTEXT", 2, lambda m: "breach" in m.text)
+        hb = g.recv("HEARTBEAT", 3)
+        assert (hb.custom_mode >> 16) & 0xFF == 4 and hb.custom_mode >> 24 == 3, "AUTO.LOITER after the breach"
+    finally:
+        g.close()
+
+
+def test_two_vehicles_share_the_gcs_port_with_their_own_system_ids(sitl_factory) -> None:
+    a = sitl_factory(physics="kinematic", instance=3)
+    b = sitl_factory(physics="kinematic", instance=4, gcs_remote_port=a.cfg.gcs_ports[1])
+    g = Gcs(a.cfg.gcs_ports[1], sysid=a.cfg.sysid)  # as QGC on 14550 with PX4 instances 3 and 4
+    try:
+        seen = set()
+        end = time.monotonic() + 5
+        while len(seen) < 2 and time.monotonic() < end:
+            hb = g.recv("HEARTBEAT", 1)
+            if hb is not None:
+                seen.add(hb.get_srcSystem())
+        assert seen == {4, 5}, "PX4 SITL numbering: instance N is system N+1"
+        arm_b = g.c.mav.command_long_encode(5, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+        for port in (a.cfg.gcs_ports[0], b.cfg.gcs_ports[0]):  # a command for B, delivered to both
+            g.c.port.sendto(arm_b.pack(g.c.mav), ("127.0.0.1", port))
+        ack = g.recv("COMMAND_ACK", 3)
+        assert ack is not None and ack.get_srcSystem() == 5 and ack.result == M.MAV_RESULT_ACCEPTED
+        time.sleep(0.2)
+        assert b.model.state.armed and not a.model.state.armed, "only the addressed vehicle acts"
     finally:
         g.close()
