@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import time
 from enum import StrEnum
 from pathlib import Path
@@ -14,6 +15,22 @@ class Physics(StrEnum):
     kinematic = "kinematic"
 
 
+def _key(signing_key: str | None, passphrase: str | None) -> bytes | None:
+    if signing_key is not None and passphrase is not None:
+        raise typer.BadParameter("give a key or a passphrase, not both", param_hint="--signing-passphrase")
+    if passphrase is not None:  # MAVProxy's `signing key PASSPHRASE`: the key is its SHA-256
+        return hashlib.sha256(passphrase.encode()).digest()
+    if signing_key is None:
+        return None
+    try:
+        key = bytes.fromhex(signing_key)
+    except ValueError as e:
+        raise typer.BadParameter("must be 64 hex characters", param_hint="--signing-key") from e
+    if len(key) != 32:
+        raise typer.BadParameter("must be 64 hex characters (32 bytes)", param_hint="--signing-key")
+    return key
+
+
 def register(app: typer.Typer) -> None:
     @app.command()
     def sitl(
@@ -24,37 +41,44 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="Seed of the field's episode and of the sensors."),
         lat: float = typer.Option(51.4545, "--lat", help="Field origin latitude."),
         lon: float = typer.Option(-2.5879, "--lon", help="Field origin longitude."),
+        alt: float = typer.Option(0.0, "--alt", help="Field origin altitude (m AMSL)."),
+        fence_radius: float = typer.Option(100.0, "--fence-radius", min=1.0, help="Geofence: max metres from home."),
+        fence_alt: float = typer.Option(30.0, "--fence-alt", min=1.0, help="Geofence: max metres above home."),
+        gcs_port_per_instance: bool = typer.Option(
+            False, "--gcs-port-per-instance",
+            help="Send GCS telemetry to 14550+N instead of PX4's shared 14550 (one MAVProxy per vehicle)."),
         signing_key: str | None = typer.Option(None, "--signing-key", help="64 hex chars: require MAVLink2 signing."),
+        signing_passphrase: str | None = typer.Option(
+            None, "--signing-passphrase", help="Require signing with SHA-256(passphrase), as MAVProxy's `signing key`."),
         tlog: Path | None = typer.Option(None, "--tlog", help="Write a .tlog (one per instance: NAME-N.tlog)."),
         duration: float | None = typer.Option(None, "--duration", help="Stop after this many simulated seconds."),
     ) -> None:
         """Start SITL vehicles (PX4 flavour) and print how to connect to them."""
-        from sim.mavlink import Sitl, SitlConfig
+        from sim.mavlink import Geofence, Sitl, SitlConfig
         from sim.vehicle.geo import HomePosition
 
-        key = None
-        if signing_key is not None:
-            try:
-                key = bytes.fromhex(signing_key)
-            except ValueError as e:
-                raise typer.BadParameter("must be 64 hex characters", param_hint="--signing-key") from e
-            if len(key) != 32:
-                raise typer.BadParameter("must be 64 hex characters (32 bytes)", param_hint="--signing-key")
+        key = _key(signing_key, signing_passphrase)
         vehicles = []
         for n in range(instance, instance + count):
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
-            cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=HomePosition(lat, lon),
-                             episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path)
+            cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=HomePosition(lat, lon, alt),
+                             episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
+                             geofence=Geofence(fence_radius, fence_alt),
+                             gcs_remote_port=14550 + n if gcs_port_per_instance else None)
             vehicles.append(Sitl(cfg))
             api, gcs = cfg.api_ports[1], cfg.gcs_ports[1]
-            typer.echo(f"vehicle {n}: MAVSDK / companion  udpin://0.0.0.0:{api}")
-            typer.echo(f"           MAVProxy            mavproxy.py --master=udpin:0.0.0.0:{gcs}")
+            typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}):")
+            typer.echo(f"    MAVSDK / companion  udpin://0.0.0.0:{api}")
+            typer.echo(f"    MAVProxy            mavproxy.py --master=udpin:0.0.0.0:{gcs}")
             qgc = "connects by itself (UDP 14550)" if gcs == 14550 else f"add a UDP comm link on port {gcs}"
-            typer.echo(f"           QGroundControl      {qgc}")
+            typer.echo(f"    QGroundControl      {qgc}")
+        if key is not None:
+            how = "`signing key PASSPHRASE`" if signing_passphrase else "the same 32-byte key"
+            typer.echo(f"MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: {how}).")
         for v in vehicles:
             v.start()
         try:
-            while all(v._thread is not None and v._thread.is_alive() for v in vehicles):
+            while all(v.running for v in vehicles):
                 time.sleep(0.2)
                 if duration is not None and all(v.t >= duration for v in vehicles):
                     break

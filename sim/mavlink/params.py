@@ -13,6 +13,7 @@ class Param:
     lo: float
     hi: float
     doc: str
+    readonly: bool = False  # reflects configuration the link must not change (e.g. signing)
 
 
 def default_params() -> dict[str, Param]:
@@ -28,12 +29,14 @@ def default_params() -> dict[str, Param]:
         "COM_OF_LOSS_T": Param(1.0, 0.1, 60.0, "offboard setpoint timeout (s)"),
         "SYS_AUTOSTART": Param(4001.0, 0.0, 1e6, "airframe: generic quadrotor x"),
         "UAVS_CAM_RATE": Param(0.0, 0.0, 30.0, "camera frames streamed per second (0: on request)"),
+        "UAVS_SIGNING": Param(0.0, 0.0, 1.0, "1: MAVLink2 signing required (read-only, set at start)", True),
     }
 
 
 class ParamStore:
-    def __init__(self) -> None:
+    def __init__(self, signing: bool = False) -> None:
         self.params = default_params()
+        self.params["UAVS_SIGNING"].value = float(signing)
         self.names = list(self.params)
 
     def __getitem__(self, name: str) -> float:
@@ -43,6 +46,8 @@ class ParamStore:
         p = self.params.get(name)
         if p is None:
             return False, f"unknown parameter {name}"
+        if p.readonly:
+            return False, f"{name} is read-only"
         if not math.isfinite(value) or not p.lo <= value <= p.hi:
             return False, f"{name}={value} outside [{p.lo}, {p.hi}]"
         p.value = float(value)

@@ -1,9 +1,11 @@
 """A software-in-the-loop vehicle: flight model + sensors + field + MAVLink endpoint, stepped
 in lock-step at a fixed rate, real time or faster (speedup), on PX4 SITL's ports.
 
-Ports (as PX4 SITL): the offboard/API link sends from UDP 14580+N to 14540+N (MAVSDK,
-companion computers: `udpin://0.0.0.0:14540`), the GCS link from 18570+N to 14550+N
-(QGroundControl, MAVProxy: `--master=udpin:0.0.0.0:14550`).
+Ports and ids as PX4 SITL (ROMFS/px4fmu_common/init.d-posix/px4-rc.mavlink, rcS): instance N
+is MAVLink system N+1; its offboard/API link sends from UDP 14580+N to 14540+N (MAVSDK,
+companion computers: `udpin://0.0.0.0:14540`), its GCS link from 18570+N to 14550 for every
+instance (QGroundControl and MAVProxy listen there and tell vehicles apart by system id).
+Every port can be overridden, which tests do to stay clear of each other.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from sim.vehicle.gps import GpsConfig, GpsModel
 
 from .tlog import TlogWriter
 from .udp import UdpLink
-from .vehicle import MavlinkVehicle
+from .vehicle import Geofence, MavlinkVehicle
 
 TICK_S = 0.02
 log = logging.getLogger(__name__)
@@ -45,10 +47,25 @@ class SitlConfig:
     tlog: Path | None = None
     gcs_link: bool = True
     host: str = "127.0.0.1"
+    geofence: Geofence = field(default_factory=Geofence)
+    system_id: int | None = None  # None: instance + 1, as PX4 SITL
+    # port overrides (None: PX4 SITL's numbering for this instance)
+    api_local_port: int | None = None
+    api_remote_port: int | None = None
+    gcs_local_port: int | None = None
+    gcs_remote_port: int | None = None
 
     def __post_init__(self) -> None:
         if not 0 <= self.instance < 40:
             raise ValueError("instance must be in 0..39 (ports 14540+N must not meet 14580+M)")
+        if self.system_id is not None and not 1 <= self.system_id <= 255:
+            raise ValueError(f"system_id must be in 1..255 (got {self.system_id})")
+        for name in ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port"):
+            port = getattr(self, name)
+            if port is not None and not 1 <= port <= 65535:
+                raise ValueError(f"{name} must be a UDP port in 1..65535 (got {port})")
+        if self.geofence.max_horizontal_m <= 0 or self.geofence.max_altitude_m <= 0:
+            raise ValueError(f"geofence limits must be positive (got {self.geofence})")
         if self.speedup < 0:
             raise ValueError("speedup must be >= 0 (0: as fast as possible)")
         if self.physics not in ("pybullet", "kinematic"):
@@ -57,12 +74,22 @@ class SitlConfig:
             self.camera = False  # the camera renders the PyBullet scene
 
     @property
+    def sysid(self) -> int:
+        return self.instance + 1 if self.system_id is None else self.system_id
+
+    @property
     def api_ports(self) -> tuple[int, int]:
-        return 14580 + self.instance, 14540 + self.instance
+        """(vehicle's local port, remote port it sends to) of the offboard/API link."""
+        return (_or(self.api_local_port, 14580 + self.instance), _or(self.api_remote_port, 14540 + self.instance))
 
     @property
     def gcs_ports(self) -> tuple[int, int]:
-        return 18570 + self.instance, 14550 + self.instance
+        """(vehicle's local port, remote port it sends to) of the GCS link."""
+        return _or(self.gcs_local_port, 18570 + self.instance), _or(self.gcs_remote_port, 14550)
+
+
+def _or(value: int | None, default: int) -> int:
+    return default if value is None else value
 
 
 class Sitl:
@@ -100,12 +127,21 @@ class Sitl:
             camera = self._render
         self.tlog = TlogWriter(cfg.tlog) if cfg.tlog else None
         sink = self.tlog.write if self.tlog else None
-        links = [UdpLink(*cfg.api_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink)]
+        links = [UdpLink(*cfg.api_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
+                         on_bytes=sink)]
         if cfg.gcs_link:
-            links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, signing_key=cfg.signing_key, on_bytes=sink,
-                                 log_outgoing=False))
+            links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
+                                 on_bytes=sink, log_outgoing=False))
         self.gps = GpsModel(self.home, cfg.seed, GpsConfig())
-        self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera)
+        self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera, system_id=cfg.sysid,
+                                      signing=cfg.signing_key is not None)
+        for name, value in (("GF_MAX_HOR_DIST", cfg.geofence.max_horizontal_m),
+                            ("GF_MAX_VER_DIST", cfg.geofence.max_altitude_m)):
+            ok, why = self.vehicle.params.set(name, value)
+            if not ok:
+                for link in links:
+                    link.close()
+                raise ValueError(f"geofence: {why}")
         if cfg.speedup > 1:
             # companions pace their setpoint streams in wall-clock time: keep the offboard-loss
             # timeout at about a second of *their* time when the simulation runs faster
@@ -165,6 +201,10 @@ class Sitl:
                     ready, _, _ = select.select(socks, [], [], lag)
                     if ready:
                         self.vehicle.service()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
 
     def start(self) -> Sitl:
         self._thread = threading.Thread(target=self.run, name=f"sitl-{self.cfg.instance}", daemon=True)

@@ -7,6 +7,7 @@ garbage) and messages failing the signature check are counted and dropped, never
 from __future__ import annotations
 
 import socket
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -19,6 +20,15 @@ class LinkStats:
     sent: int = 0
     bad_data: int = 0
     rejected_unsigned: int = 0
+
+
+SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
+
+
+def signing_timestamp(now_s: float | None = None) -> int:
+    """MAVLink2 signing timestamp for a wall-clock time (10 us units since 2015)."""
+    now = time.time() if now_s is None else now_s
+    return int(max(now - SIGNING_EPOCH_S, 0.0) * 100_000)
 
 
 class UdpLink:
@@ -49,6 +59,9 @@ class UdpLink:
             self.mav.signing.secret_key = signing_key
             self.mav.signing.sign_outgoing = True
             self.mav.signing.link_id = 0
+            # the signing spec's clock: 10 us units since 2015-01-01; a peer drops a new stream
+            # more than a minute older than its own clock, so it cannot start at zero
+            self.mav.signing.timestamp = signing_timestamp()
             # RADIO_STATUS may come unsigned from radios (the MAVLink signing spec's exception)
             self.mav.signing.allow_unsigned_callback = lambda _m, msg_id: msg_id == mavlink.MAVLINK_MSG_ID_RADIO_STATUS
 

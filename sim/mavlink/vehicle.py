@@ -50,6 +50,7 @@ DEFAULT_RATES = {
     M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0, M.MAVLINK_MSG_ID_VFR_HUD: 4.0,
 }
 FORCE_MAGIC = 21196
+FENCE_LOOKAHEAD_S = 1.5  # how far ahead a velocity setpoint is checked against the fence
 REQUESTABLE = set(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE}
 
 
@@ -60,6 +61,15 @@ class Geofence:
 
     def allows(self, ned: np.ndarray) -> bool:
         return bool(np.hypot(ned[0], ned[1]) <= self.max_horizontal_m and -ned[2] <= self.max_altitude_m)
+
+    def clamp(self, ned: np.ndarray, margin_m: float = 1.0) -> np.ndarray:
+        """The point nearest `ned` at least `margin_m` inside the fence."""
+        out = np.asarray(ned, dtype=float).copy()
+        r, r_max = float(np.hypot(out[0], out[1])), max(self.max_horizontal_m - margin_m, 0.0)
+        if r > r_max:
+            out[:2] *= r_max / r
+        out[2] = max(out[2], -max(self.max_altitude_m - margin_m, 0.5))
+        return out
 
 
 @dataclass
@@ -80,10 +90,11 @@ class MavlinkVehicle:
         gps: GpsModel,
         camera: Callable[[np.ndarray, float], np.ndarray] | None = None,
         system_id: int = 1,
+        signing: bool = False,
     ) -> None:
         self.model, self.links, self.home, self.gps, self.camera = model, links, home, gps, camera
         self.sysid = system_id
-        self.params = ParamStore()
+        self.params = ParamStore(signing=signing)
         self.mission = MissionStore()
         self.mode = "AUTO.LOITER"
         self.rates = dict(DEFAULT_RATES)
@@ -93,6 +104,8 @@ class MavlinkVehicle:
         self.counters = VehicleCounters()
         self._target: np.ndarray | None = None  # NED hold/goto target
         self._offboard_t = -1e9
+        self._velocity_control = False  # the model tracks a velocity, not a position
+        self._fence_hold = False  # holding inside after a breach
         self._rtl_phase = 0
         self._wp_reached = -1
         self._pending_frames = 0
@@ -132,6 +145,7 @@ class MavlinkVehicle:
         return self.model.state.position_ned + self.gps.bias
 
     def _command_model(self, target_est: np.ndarray, yaw: float | None = None, speed: float | None = None) -> None:
+        self._velocity_control = False
         self.model.set_position_target(np.asarray(target_est, float) - self.gps.bias, yaw=yaw, speed=speed)
 
     def _hold_here(self) -> None:
@@ -176,6 +190,8 @@ class MavlinkVehicle:
         s = self.model.state
         if not s.armed:
             return
+        if not s.landed and self._fence_breach():
+            return
         if self.mode == "AUTO.TAKEOFF" and self._target is not None:
             if abs(self.estimate()[2] - self._target[2]) < 0.3:
                 self._set_mode("AUTO.LOITER")
@@ -196,6 +212,24 @@ class MavlinkVehicle:
         elif self.mode == "OFFBOARD" and self.t - self._offboard_t > self.params["COM_OF_LOSS_T"]:
             self.statustext("Offboard setpoints lost: holding position", M.MAV_SEVERITY_WARNING)
             self._set_mode("AUTO.LOITER")
+
+    def _fence_breach(self) -> bool:
+        """Hold inside the fence when the vehicle is outside it, or about to leave it under
+        velocity control (targets are checked before they are flown; velocities cannot be)."""
+        fence, p = self.fence(), self.estimate()
+        ahead = p + self.model.state.velocity_ned * FENCE_LOOKAHEAD_S if self._velocity_control else p
+        if fence.allows(p) and fence.allows(ahead):
+            self._fence_hold = False
+            return False
+        if self._fence_hold and not self._velocity_control:
+            return True  # already on the way back in
+        self._fence_hold = True
+        self.counters.fence_rejections += 1
+        self.statustext("Geofence breach: holding inside", M.MAV_SEVERITY_CRITICAL)
+        self.mode = "AUTO.LOITER"
+        self._target = fence.clamp(p)
+        self._command_model(self._target, speed=self.params["MPC_XY_CRUISE"])
+        return True
 
     def _fly_mission(self) -> None:
         items = self.mission.items
@@ -227,7 +261,8 @@ class MavlinkVehicle:
             if not self._goto(goal):
                 self._set_mode("AUTO.LOITER")
                 return
-        if np.linalg.norm(self.estimate() - goal) < max(self.params["NAV_ACC_RAD"], 0.3):
+        radius = item.params[1] if item.command == M.MAV_CMD_NAV_WAYPOINT and item.params[1] > 0 else self.params["NAV_ACC_RAD"]
+        if np.linalg.norm(self.estimate() - goal) < max(radius, 0.3):
             self._advance(item)
 
     def _advance(self, item: MissionItem) -> None:
@@ -340,6 +375,9 @@ class MavlinkVehicle:
         kind = msg.get_type()
         target = getattr(msg, "target_system", None)
         if target not in (None, 0, self.sysid):
+            return
+        # addressed to another component of this system (a camera, a gimbal): not ours to answer
+        if getattr(msg, "target_component", None) not in (None, 0, M.MAV_COMP_ID_AUTOPILOT1):
             return
         handler = getattr(self, f"_on_{kind.lower()}", None)
         if handler is not None:
@@ -486,6 +524,7 @@ class MavlinkVehicle:
             self._target = pos
             self._command_model(pos, yaw=yaw_v, speed=self.params["MPC_XY_VEL_MAX"])
         elif not (mask & M.POSITION_TARGET_TYPEMASK_VX_IGNORE):
+            self._velocity_control = True
             self.model.set_velocity_target(vel)
 
     # -- parameters ----------------------------------------------------------------------
