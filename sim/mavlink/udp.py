@@ -6,6 +6,7 @@ garbage) and messages failing the signature check are counted and dropped, never
 
 from __future__ import annotations
 
+import logging
 import socket
 import time
 from collections.abc import Callable
@@ -22,6 +23,7 @@ class LinkStats:
     rejected_unsigned: int = 0
 
 
+log = logging.getLogger(__name__)
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 
 
@@ -89,6 +91,7 @@ class UdpLink:
             self.mav.buf, self.mav.buf_index = bytearray(), 0
             self.mav.expected_length, self.mav.have_prefix_error = mavlink.HEADER_LEN_V1 + 2, False
             rejected_before = self.mav.signing.reject_count + self.mav.signing.badsig_count
+            bad_before = self.stats.bad_data
             try:
                 msgs = self.mav.parse_buffer(data) or []
             except mavlink.MAVError:
@@ -101,6 +104,8 @@ class UdpLink:
             leftover = len(self.mav.buf) - self.mav.buf_index
             if (not msgs and not rejected) or leftover > 0:
                 self.stats.bad_data += 1 if data else 0
+            if self.stats.bad_data > bad_before or rejected:
+                self._log_drop(addr, data)
             if good:
                 if addr not in self.peers:
                     self.peers.append(addr)
@@ -109,6 +114,14 @@ class UdpLink:
                     self.on_bytes(data, False)
                 out.extend(good)
         return out
+
+    def _log_drop(self, addr: tuple[str, int], data: bytes) -> None:
+        """Log dropped datagrams without flooding: the 1st, 10th, 100th, ... drop on this link."""
+        total = self.stats.bad_data + self.stats.rejected_unsigned
+        if str(total).rstrip("0") == "1":
+            log.warning("port %d dropped a datagram from %s:%d (%d bytes, starts %s): %d malformed, %d unsigned "
+                        "or badly signed so far", self.sock.getsockname()[1], addr[0], addr[1], len(data),
+                        data[:8].hex(), self.stats.bad_data, self.stats.rejected_unsigned)
 
     def close(self) -> None:
         self.sock.close()

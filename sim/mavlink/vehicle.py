@@ -16,40 +16,21 @@ from dataclasses import dataclass, field
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
-from sim.vehicle.geo import HomePosition, to_e7
+from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsFix, GpsModel
 from sim.vehicle.model import FlightModel
 
 from .images import frame_messages
 from .mission import MissionItem, MissionStore
-from .modes import px4_custom_mode, px4_mode_name
+from .modes import px4_mode_name
 from .params import ParamStore
+from .telemetry import BUILDERS, DEFAULT_RATES, Snapshot
 from .udp import UdpLink
 
 M = mavlink
-SENSORS = (
-    M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL | M.MAV_SYS_STATUS_SENSOR_3D_MAG
-    | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE | M.MAV_SYS_STATUS_SENSOR_GPS
-    | M.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL | M.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
-    | M.MAV_SYS_STATUS_SENSOR_YAW_POSITION | M.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
-    | M.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL | M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-    | M.MAV_SYS_STATUS_SENSOR_BATTERY | M.MAV_SYS_STATUS_AHRS
-)
-CAPABILITIES = (
-    M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-    | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
-    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-)
-#: default telemetry rates (Hz) per message id; SET_MESSAGE_INTERVAL changes them
-DEFAULT_RATES = {
-    M.MAVLINK_MSG_ID_HEARTBEAT: 1.0, M.MAVLINK_MSG_ID_SYS_STATUS: 1.0, M.MAVLINK_MSG_ID_GPS_RAW_INT: 5.0,
-    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 10.0, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 10.0,
-    M.MAVLINK_MSG_ID_ATTITUDE: 10.0, M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 2.0,
-    M.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0, M.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
-    M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0, M.MAVLINK_MSG_ID_VFR_HUD: 4.0,
-}
 FORCE_MAGIC = 21196
+#: PX4 modes flown from RC sticks; no MANUAL_CONTROL is simulated, so they are refused
+STICK_MODES = {"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"}
 FENCE_LOOKAHEAD_S = 1.5  # how far ahead a velocity setpoint is checked against the fence
 REQUESTABLE = set(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE}
 
@@ -136,7 +117,7 @@ class MavlinkVehicle:
         if mode != self.mode:
             self.mode = mode
             self._rtl_phase = 0
-            if mode == "AUTO.LOITER" or mode in ("POSCTL", "ALTCTL", "MANUAL", "STABILIZED"):
+            if mode == "AUTO.LOITER":
                 self._hold_here()
 
     def estimate(self) -> np.ndarray:
@@ -280,70 +261,22 @@ class MavlinkVehicle:
         if self._pending_frames or (self.params["UAVS_CAM_RATE"] > 0 and self.t >= self._next_frame_t):
             self._send_frame()
 
+    def snapshot(self) -> Snapshot:
+        return Snapshot(self.t, self.model.state, self.estimate(), self.home, self.fix, self.mode, self.sysid)
+
     def _send_message(self, msg_id: int) -> bool:
-        s, mav = self.model.state, self.mav
-        tb = int(self.t * 1000)
-        if msg_id == M.MAVLINK_MSG_ID_HEARTBEAT:
-            base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED | M.MAV_MODE_FLAG_GUIDED_ENABLED
-            if s.armed:
-                base |= M.MAV_MODE_FLAG_SAFETY_ARMED
-            state = M.MAV_STATE_ACTIVE if s.armed else M.MAV_STATE_STANDBY
-            self.send(mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4, base, px4_custom_mode(self.mode), state))
-        elif msg_id == M.MAVLINK_MSG_ID_SYS_STATUS:
-            health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if self.fix is not None else 0)
-            if self.fix is None:
-                health &= ~M.MAV_SYS_STATUS_SENSOR_GPS
-            self.send(mav.sys_status_encode(SENSORS | M.MAV_SYS_STATUS_PREARM_CHECK, SENSORS | M.MAV_SYS_STATUS_PREARM_CHECK,
-                                            health, 250, int(s.battery_voltage * 1000), -1,
-                                            int(s.battery_remaining * 100), 0, 0, 0, 0, 0, 0))
-        elif msg_id == M.MAVLINK_MSG_ID_GPS_RAW_INT:
-            f = self.fix
-            if f is None:
-                return False
-            self.send(mav.gps_raw_int_encode(int(f.time_s * 1e6), f.fix_type, to_e7(f.lat_deg), to_e7(f.lon_deg),
-                                             int(f.alt_m * 1000), int(f.eph_m * 100), int(f.epv_m * 100),
-                                             int(np.hypot(*f.vel_ned[:2]) * 100), 65535, f.satellites_visible,
-                                             0, int(f.eph_m * 1000), int(f.epv_m * 1000), 300, 0))
-        elif msg_id == M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
-            # the autopilot's estimate: truth plus the GPS bias (what an EKF fed by GPS converges to)
-            est = self.estimate()
-            lat, lon, alt = self.home.ned_to_geodetic(est)
-            v = s.velocity_ned
-            hdg = int((math.degrees(s.attitude_rpy[2]) % 360) * 100)
-            self.send(mav.global_position_int_encode(tb, to_e7(lat), to_e7(lon), int(alt * 1000), int(-est[2] * 1000),
-                                                     int(v[0] * 100), int(v[1] * 100), int(v[2] * 100), hdg))
-        elif msg_id == M.MAVLINK_MSG_ID_LOCAL_POSITION_NED:
-            est = self.estimate()
-            v = s.velocity_ned
-            self.send(mav.local_position_ned_encode(tb, *map(float, est), *map(float, v)))
-        elif msg_id == M.MAVLINK_MSG_ID_ATTITUDE:
-            r, p_, y = s.attitude_rpy
-            self.send(mav.attitude_encode(tb, r, p_, y, *s.body_rates))
-        elif msg_id == M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
-            landed = M.MAV_LANDED_STATE_ON_GROUND if s.landed else M.MAV_LANDED_STATE_IN_AIR
-            self.send(mav.extended_sys_state_encode(M.MAV_VTOL_STATE_MC, landed))
-        elif msg_id == M.MAVLINK_MSG_ID_BATTERY_STATUS:
-            volts = [int(s.battery_voltage * 1000 / 4)] * 4 + [65535] * 6
-            self.send(mav.battery_status_encode(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 2500, volts,
-                                                -1, -1, -1, int(s.battery_remaining * 100)))
-        elif msg_id == M.MAVLINK_MSG_ID_HOME_POSITION:
-            h = self.home
-            self.send(mav.home_position_encode(to_e7(h.lat_deg), to_e7(h.lon_deg), int(h.alt_m * 1000), 0, 0, 0,
-                                               [1, 0, 0, 0], 0, 0, 0, int(self.t * 1e6)))
-        elif msg_id == M.MAVLINK_MSG_ID_MISSION_CURRENT:
+        """Send one message now (stream tick or REQUEST_MESSAGE); False if there is none to send."""
+        if msg_id == M.MAVLINK_MSG_ID_MISSION_CURRENT:
             self._send_mission_current()
-        elif msg_id == M.MAVLINK_MSG_ID_VFR_HUD:
-            v = s.velocity_ned
-            self.send(mav.vfr_hud_encode(float(np.hypot(v[0], v[1])), float(np.hypot(v[0], v[1])),
-                                         int(math.degrees(s.attitude_rpy[2]) % 360), 50 if s.armed else 0,
-                                         float(self.home.alt_m - s.position_ned[2]), float(-v[2])))
-        elif msg_id == M.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            self.send(mav.autopilot_version_encode(CAPABILITIES, (1 << 24) | (15 << 16), 0, 0, 0,
-                                                   b"\0" * 8, b"\0" * 8, b"\0" * 8, 0, 0, self.sysid, b"\0" * 18))
-        elif msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
-            self._pending_frames += 1
-        else:
+            return True
+        if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
+            self._pending_frames += 1  # a camera frame goes out on the next tick
+            return True
+        build = BUILDERS.get(msg_id)
+        msg = build(self.mav, self.snapshot()) if build is not None else None
+        if msg is None:
             return False
+        self.send(msg)
         return True
 
     def _send_mission_current(self) -> None:
@@ -413,24 +346,21 @@ class MavlinkVehicle:
             name = px4_mode_name(q[1], q[2]) if q[0] & R.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED else None
             if name is None:
                 return self._ack(cmd, R.MAV_RESULT_UNSUPPORTED, msg)
+            if name in STICK_MODES:
+                self.statustext(f"{name} needs manual control input, which this vehicle has not", M.MAV_SEVERITY_WARNING)
+                return self._ack(cmd, R.MAV_RESULT_DENIED, msg)
             if name == "OFFBOARD" and self.t - self._offboard_t > self.params["COM_OF_LOSS_T"]:
                 self.statustext("Offboard denied: stream setpoints first", M.MAV_SEVERITY_WARNING)
                 return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
             if name == "AUTO.MISSION" and not self.mission.items:
                 return self._ack(cmd, R.MAV_RESULT_DENIED, msg)
+            if name == "AUTO.RTL" and (not s.armed or s.landed):
+                return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
+            if name == "AUTO.TAKEOFF":  # as PX4: the mode itself climbs to MIS_TAKEOFF_ALT
+                return self._ack(cmd, self._takeoff(math.nan), msg)
             return self._enter(msg, cmd, name)
         if cmd == R.MAV_CMD_NAV_TAKEOFF:
-            if not s.armed:
-                return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
-            rel = self.params["MIS_TAKEOFF_ALT"] if not math.isfinite(p[6]) else p[6] - self.home.alt_m
-            if rel <= 0.3:
-                rel = self.params["MIS_TAKEOFF_ALT"]
-            est = self.estimate()
-            goal = np.array([est[0], est[1], -rel])
-            if not self._goto(goal, speed=self.params["MPC_XY_CRUISE"]):
-                return self._ack(cmd, R.MAV_RESULT_DENIED, msg)
-            self.mode = "AUTO.TAKEOFF"
-            return self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
+            return self._ack(cmd, self._takeoff(p[6]), msg)
         if cmd == R.MAV_CMD_NAV_LAND:
             self.mode = "AUTO.LAND"
             self.model.land()
@@ -475,10 +405,12 @@ class MavlinkVehicle:
             return self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
         if cmd == R.MAV_CMD_REQUEST_MESSAGE:
             # the ACK first, then the message, as the command protocol describes
-            ok = q[0] in REQUESTABLE and (q[0] != M.MAVLINK_MSG_ID_GPS_RAW_INT or self.fix is not None)
-            self._ack(cmd, R.MAV_RESULT_ACCEPTED if ok else R.MAV_RESULT_UNSUPPORTED, msg)
-            if ok:
-                self._send_message(q[0])
+            if q[0] not in REQUESTABLE or (q[0] == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE and self.camera is None):
+                return self._ack(cmd, R.MAV_RESULT_UNSUPPORTED, msg)
+            if q[0] == M.MAVLINK_MSG_ID_GPS_RAW_INT and self.fix is None:
+                return self._ack(cmd, R.MAV_RESULT_TEMPORARILY_REJECTED, msg)
+            self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
+            self._send_message(q[0])
             return None
         if cmd == R.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
@@ -490,6 +422,19 @@ class MavlinkVehicle:
             return None
         return self._ack(cmd, R.MAV_RESULT_UNSUPPORTED, msg)
 
+    def _takeoff(self, alt_amsl: float) -> int:
+        """Climb over the current position to alt_amsl (NaN: MIS_TAKEOFF_ALT); a MAV_RESULT."""
+        if not self.model.state.armed:
+            return M.MAV_RESULT_TEMPORARILY_REJECTED
+        rel = alt_amsl - self.home.alt_m if math.isfinite(alt_amsl) else self.params["MIS_TAKEOFF_ALT"]
+        if rel <= 0.3:
+            rel = self.params["MIS_TAKEOFF_ALT"]
+        est = self.estimate()
+        if not self._goto(np.array([est[0], est[1], -rel]), speed=self.params["MPC_XY_CRUISE"]):
+            return M.MAV_RESULT_DENIED
+        self.mode = "AUTO.TAKEOFF"
+        return M.MAV_RESULT_ACCEPTED
+
     def _enter(self, msg, cmd: int, name: str) -> None:
         self._set_mode(name)
         if name == "AUTO.LAND":
@@ -497,8 +442,9 @@ class MavlinkVehicle:
         self._ack(cmd, M.MAV_RESULT_ACCEPTED, msg)
 
     def _on_set_mode(self, msg) -> None:
+        """The deprecated SET_MODE message: obeyed like DO_SET_MODE, without the ACK."""
         name = px4_mode_name((msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF)
-        if name is not None:
+        if name is not None and name not in STICK_MODES and name != "OFFBOARD":
             self._set_mode(name)
 
     def _on_set_position_target_local_ned(self, msg) -> None:

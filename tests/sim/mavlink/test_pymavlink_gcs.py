@@ -1,5 +1,6 @@
 """The same flight with a plain pymavlink ground station, plus the protocol's edges."""
 
+import logging
 import math
 import socket
 import subprocess
@@ -83,6 +84,13 @@ def test_command_acks_are_honest(sitl_factory) -> None:
         assert g.command(M.MAV_CMD_DO_SET_MODE, 1, 99, 0).result == M.MAV_RESULT_UNSUPPORTED
         assert g.command(M.MAV_CMD_MISSION_START).result == M.MAV_RESULT_DENIED  # no mission
         assert g.command(M.MAV_CMD_DO_FLIGHTTERMINATION, 1).result == M.MAV_RESULT_UNSUPPORTED
+        custom = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 3, 0).result == M.MAV_RESULT_DENIED, "POSCTL needs sticks"
+        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 4, 2).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "takeoff, disarmed"
+        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 4, 5).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "RTL, on ground"
+        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 6, 0).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "no setpoints"
+        handshake = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE)
+        assert handshake.result == M.MAV_RESULT_UNSUPPORTED, "the kinematic airframe has no camera"
         assert g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == M.MAV_RESULT_ACCEPTED
         av = g.recv("AUTOPILOT_VERSION", 3)
         assert av.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
@@ -95,6 +103,15 @@ def test_command_acks_are_honest(sitl_factory) -> None:
         assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
         assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0).result == M.MAV_RESULT_DENIED, "no disarm in the air"
+        # COMMAND_INT: reposition 5 m north at 4 m relative altitude, lat/lon as integers
+        home = g.recv("HOME_POSITION", 5)
+        g.c.mav.command_int_send(g.sysid, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0,
+                                 -1, 0, 0, math.nan, home.latitude + int(5 / 111_200.0 * 1e7), home.longitude, 4.0)
+        assert g.recv("COMMAND_ACK", 3, lambda a: a.command == M.MAV_CMD_DO_REPOSITION).result == M.MAV_RESULT_ACCEPTED
+        end = time.monotonic() + 5
+        while time.monotonic() < end and np.linalg.norm(sitl.vehicle.estimate() - [5.0, 0.0, -4.0]) > 0.3:
+            time.sleep(0.05)
+        assert np.linalg.norm(sitl.vehicle.estimate() - [5.0, 0.0, -4.0]) < 0.3
     finally:
         g.close()
 
@@ -145,7 +162,8 @@ def test_parameters_list_read_set_and_bad_values(sitl_factory) -> None:
         g.close()
 
 
-def test_malformed_bytes_are_counted_and_survived(sitl_factory) -> None:
+def test_malformed_bytes_are_counted_and_survived(sitl_factory, caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="sim.mavlink.udp")
     sitl = sitl_factory(physics="kinematic")
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
@@ -157,6 +175,7 @@ def test_malformed_bytes_are_counted_and_survived(sitl_factory) -> None:
             sock.sendto(junk, ("127.0.0.1", sitl.cfg.gcs_ports[0]))
         time.sleep(0.3)
         assert sitl.vehicle.links[1].stats.bad_data >= 3
+        assert any("dropped a datagram" in r.getMessage() for r in caplog.records)
         assert g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == M.MAV_RESULT_ACCEPTED
         assert not sitl.errors
     finally:
