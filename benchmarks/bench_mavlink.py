@@ -45,14 +45,25 @@ def udp_echo_rtt(n: int = 300) -> np.ndarray:
     return np.array(out)
 
 
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _ports() -> dict[str, int]:
+    """OS-chosen ports, so the benchmark never meets a running `uavsearch sitl` or QGC."""
+    return {k: _free_port() for k in ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port")}
+
+
 def command_rtt(n: int = 200) -> np.ndarray:
-    sitl = Sitl(SitlConfig(instance=37, speedup=1.0, physics="kinematic", gcs_link=True)).start()
+    sitl = Sitl(SitlConfig(instance=37, speedup=1.0, physics="kinematic", gcs_link=True, **_ports())).start()
     g = mavutil.mavlink_connection(f"udpin:0.0.0.0:{sitl.cfg.gcs_ports[1]}", source_system=255)
     g.wait_heartbeat(timeout=10)
     out = []
     for _ in range(n):
         t0 = time.perf_counter()
-        g.mav.command_long_send(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 9999, 0, 0, 0, 0, 0, 0)
+        g.mav.command_long_send(sitl.cfg.sysid, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 9999, 0, 0, 0, 0, 0, 0)
         while True:
             m = g.recv_match(type="COMMAND_ACK", blocking=True, timeout=2)
             if m is None or m.command == M.MAV_CMD_REQUEST_MESSAGE:
@@ -64,7 +75,7 @@ def command_rtt(n: int = 200) -> np.ndarray:
 
 
 def sitl_rtf(physics: str, seconds: float = 20.0) -> float:
-    s = Sitl(SitlConfig(instance=38, speedup=0, physics=physics, camera=False))
+    s = Sitl(SitlConfig(instance=38, speedup=0, physics=physics, camera=False, **_ports()))
     s.model.arm()  # hovering, so the controller runs every physics step
     s.model.set_position_target(np.array([0.0, 0.0, -3.5]))
     t0 = time.perf_counter()

@@ -41,7 +41,7 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="Seed of the field's episode and of the sensors."),
         lat: float = typer.Option(51.4545, "--lat", help="Field origin latitude."),
         lon: float = typer.Option(-2.5879, "--lon", help="Field origin longitude."),
-        alt: float = typer.Option(0.0, "--alt", help="Field origin altitude (m AMSL)."),
+        alt: float = typer.Option(30.0, "--alt", help="Field origin altitude (m AMSL)."),
         fence_radius: float = typer.Option(100.0, "--fence-radius", min=1.0, help="Geofence: max metres from home."),
         fence_alt: float = typer.Option(30.0, "--fence-alt", min=1.0, help="Geofence: max metres above home."),
         gcs_port_per_instance: bool = typer.Option(

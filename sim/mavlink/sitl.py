@@ -15,11 +15,13 @@ import select
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from provenance import stamp
 from sim.gridworld import BatchGridWorld, GridConfig, cell_to_ned, sample_episodes
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig, GpsModel
@@ -73,6 +75,14 @@ class SitlConfig:
         if self.camera and self.physics != "pybullet":
             self.camera = False  # the camera renders the PyBullet scene
 
+    def to_dict(self) -> dict[str, Any]:
+        """The config for provenance records; the signing key itself is never written out."""
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("signing_key", "grid")}
+        d.update(home=asdict(self.home), geofence=asdict(self.geofence), grid=self.grid.to_dict(),
+                 signing=self.signing_key is not None, tlog=None if self.tlog is None else str(self.tlog),
+                 sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports)
+        return d
+
     @property
     def sysid(self) -> int:
         return self.instance + 1 if self.system_id is None else self.system_id
@@ -125,7 +135,7 @@ class Sitl:
                                 origin=self.episode.agent[0])
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
             camera = self._render
-        self.tlog = TlogWriter(cfg.tlog) if cfg.tlog else None
+        self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None
         sink = self.tlog.write if self.tlog else None
         links = [UdpLink(*cfg.api_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
                          on_bytes=sink)]

@@ -1,5 +1,6 @@
 """The same flight with a plain pymavlink ground station, plus the protocol's edges."""
 
+import json
 import logging
 import math
 import socket
@@ -241,6 +242,9 @@ def test_camera_frames_over_image_transmission_and_tlog(sitl_factory, tmp_path) 
     dump = subprocess.run([sys.executable, str(Path(sys.executable).with_name("mavlogdump.py")), "--types", "COMMAND_ACK",
                            str(tlog)], capture_output=True, text=True, timeout=60)
     assert dump.returncode == 0 and "COMMAND_ACK" in dump.stdout, dump.stderr[-500:]
+    meta = json.loads(tlog.with_name("flight.tlog.json").read_text())
+    assert meta["seed"] == sitl.cfg.seed and meta["git_revision"] and meta["config"]["physics"] == "pybullet"
+    assert meta["config"]["signing"] is False and "signing_key" not in meta["config"]
 
 
 def test_mission_clear_set_current_and_global_offboard_setpoints(sitl_factory) -> None:
