@@ -48,7 +48,9 @@ def test_sitl_command_runs_and_writes_readable_tlogs(tmp_path: Path) -> None:
     r = runner.invoke(app, ["sitl", "--instance", "31", "--count", "2", "--physics", "kinematic", "--speedup", "0",
                             "--duration", "2", "--tlog", str(tmp_path / "f.tlog")])
     assert r.exit_code == 0, r.output
-    assert "udpin://0.0.0.0:14571" in r.output and "udpin:0.0.0.0:14582" in r.output
+    # PX4 SITL numbering: API port 14540 + N, system id N + 1, GCS telemetry to the shared 14550
+    assert "udpin://0.0.0.0:14571" in r.output and "MAVLink system 33" in r.output
+    assert "udpin:0.0.0.0:14550" in r.output
     for n in (31, 32):
         log = mavutil.mavlink_connection(str(tmp_path / f"f-{n}.tlog"))
         assert log.recv_match(type="HEARTBEAT") is not None
