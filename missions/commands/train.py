@@ -45,6 +45,12 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed"),
         device: Device = typer.Option(Device.auto, "--device"),
         resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in --out."),
+        threads: int | None = typer.Option(None, "--threads", min=1,
+                                           help="torch CPU threads (default: 1 for small, torch's for paper)."),
+        workers: int = typer.Option(1, "--workers", min=1, help="Train folds in this many local processes."),
+        ray_address: str | None = typer.Option(None, "--ray-address",
+                                               help="Send folds to this ray cluster (dataset on a shared path)."),
+        ddp: int = typer.Option(0, "--ddp", min=0, help="DDP processes (GPUs) per fold; 0: off."),
     ) -> None:
         """Train on optimal decisions; the best fold's model is written to OUT/model.pt."""
         from policy.data import DatasetError
@@ -53,11 +59,12 @@ def register(app: typer.Typer) -> None:
 
         try:
             tc = TrainConfig(model=model.value, arch=arch.value, epochs=epochs, folds=folds, run_folds=run_folds,
-                             batch=batch, lr=lr, optimizer=optimizer.value, seed=seed, device=device.value)
-            summary = run(dataset, out, tc, resume=resume)
+                             batch=batch, lr=lr, optimizer=optimizer.value, seed=seed, device=device.value,
+                             threads=threads, ddp=ddp)
+            summary = run(dataset, out, tc, resume=resume, workers=workers, ray_address=ray_address)
         except DatasetError as e:
             raise typer.BadParameter(str(e), param_hint="--dataset") from e
-        except ValueError as e:
+        except (ValueError, RuntimeError) as e:  # CheckpointError is a ValueError
             raise typer.BadParameter(str(e)) from e
         typer.echo(
             f"{out}/model.pt: CV accuracy {100 * summary['cv_acc_mean']:.2f} ± {100 * summary['cv_acc_sd']:.2f} % "

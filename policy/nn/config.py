@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from .encode import map_scale_for, view_scale_for
+
 MODELS = ("dualstream", "ssn")
 ARCHS = ("small", "paper")
 
@@ -49,7 +51,7 @@ class ModelConfig:
             view_shape=tuple(view_shape),
             map_shape=tuple(map_shape),
             n_actions=n_actions,
-            view_scale=255.0 if rendered else 1.0,
-            map_scale=50.0 if map_shape[0] == 2 else 10.0,
+            view_scale=view_scale_for(rendered),
+            map_scale=map_scale_for(map_shape[0]),
             **kw,
         )

@@ -12,9 +12,15 @@ from sim.gridworld import Episodes, GridConfig
 
 from ..base import Observation, Policy
 from ..loops import LoopGuard
+from .encode import to_tensors
 
 
 class NetworkPolicy(Policy):
+    """Argmax of the network's output for every active episode, one forward pass per step.
+
+    Off-map choices are the world's to replace (a random valid move); loop detection is the
+    `LoopGuard` wrapper's job, so this class stays the bare network."""
+
     def __init__(self, model: nn.Module, name: str = "dualstream", device: str = "cpu") -> None:
         self.model = model.to(device).eval()
         self.name, self.device = name, device
@@ -24,9 +30,13 @@ class NetworkPolicy(Policy):
 
     @torch.inference_mode()
     def scores(self, views: np.ndarray, maps: np.ndarray) -> np.ndarray:
-        v = torch.from_numpy(np.ascontiguousarray(views)).to(self.device)
-        m = torch.from_numpy(np.ascontiguousarray(maps, dtype=np.float32)).to(self.device)
+        """(n, A) network outputs (logits; log-probabilities for the SSN) for n observations."""
+        v, m = to_tensors(views, maps, self.device)
         return self.model(v, m).float().cpu().numpy()
+
+    def decide(self, view: np.ndarray, grid_map: np.ndarray) -> int:
+        """One decision from one observation (view (C,H,W), map (C,h,w)): the policy service's call."""
+        return int(self.scores(view[None], grid_map[None])[0].argmax())
 
     def act(self, obs: Observation) -> np.ndarray:
         a = np.zeros(len(obs.positions), dtype=np.int64)
@@ -38,6 +48,13 @@ class NetworkPolicy(Policy):
 
 def shipped_checkpoint(name: str = "dualstream_static_random") -> Path:
     return Path(__file__).resolve().parent.parent / "checkpoints" / f"{name}.pt"
+
+
+def load_shipped_policy(cfg: GridConfig | None = None, model: str = "dualstream",
+                        device: str = "cpu") -> Policy:
+    """The shipped network for the static random setting (`eval --policy dualstream`, the demo):
+    a NetworkPolicy under LoopGuard, as the paper tests it."""
+    return load_policy(shipped_checkpoint(f"{model}_static_random"), cfg=cfg, device=device, name=model)
 
 
 def load_policy(

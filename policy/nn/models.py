@@ -10,6 +10,7 @@ import torch
 from torch import nn
 
 from .config import ModelConfig
+from .encode import normalise
 from .streams import STREAMS, init_weights
 
 
@@ -31,9 +32,8 @@ class DualStream(nn.Module):
 
     def forward(self, view: torch.Tensor, grid_map: torch.Tensor) -> torch.Tensor:
         """Logits over the actions."""
-        v = self.visual(view.float() / self.view_scale)
-        m = self.mapper(grid_map.float() / self.map_scale)
-        return self.head(torch.cat([v, m], dim=1))
+        v, m = normalise(view, grid_map, self.view_scale, self.map_scale)
+        return self.head(torch.cat([self.visual(v), self.mapper(m)], dim=1))
 
     def probabilities(self, view: torch.Tensor, grid_map: torch.Tensor) -> torch.Tensor:
         return torch.softmax(self(view, grid_map), dim=1)
@@ -59,9 +59,8 @@ class SplitStream(nn.Module):
         init_weights(self)
 
     def streams(self, view: torch.Tensor, grid_map: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        lv = self.view_head(self.visual(view.float() / self.view_scale))
-        lm = self.map_head(self.mapper(grid_map.float() / self.map_scale))
-        return lv, lm
+        v, m = normalise(view, grid_map, self.view_scale, self.map_scale)
+        return self.view_head(self.visual(v)), self.map_head(self.mapper(m))
 
     def forward(self, view: torch.Tensor, grid_map: torch.Tensor) -> torch.Tensor:
         """Log of the normalised sum of both softmaxes (so argmax and CE-style use both work)."""

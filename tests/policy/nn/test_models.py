@@ -13,6 +13,8 @@ from policy.nn import (
     export_torchscript,
     load_model,
     load_torchscript,
+    map_scale_for,
+    normalise,
     save_checkpoint,
 )
 from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
@@ -53,6 +55,7 @@ def test_exported_model_gives_the_same_actions(tmp_path: Path) -> None:
         obs = observe(world)
         a, b = eager.act(obs), script.act(obs)
         assert (a == b).all()
+        assert script.decide(obs.views[0], obs.maps[0]) == a[0], "single-step inference agrees"
         world.step(a)
 
 
@@ -80,13 +83,26 @@ def test_checkpoint_round_trip_and_clear_errors(tmp_path: Path) -> None:
         load_model(tmp_path / "foreign.pt")
 
 
+def test_normalisation_scales_follow_the_map_and_view_kinds() -> None:
+    assert ModelConfig.for_data((3, 3, 3), (1, 10, 10), 4, rendered=False).map_scale == 10.0
+    cfg = ModelConfig.for_data((3, 50, 50), (2, 8, 12), 5, rendered=True)
+    assert (cfg.view_scale, cfg.map_scale) == (255.0, 50.0)
+    v, m = normalise(torch.full((1, 3, 50, 50), 255, dtype=torch.uint8), torch.full((1, 2, 8, 12), 50.0),
+                     torch.tensor(cfg.view_scale), torch.tensor(cfg.map_scale))
+    assert float(v.max()) == 1.0 and float(m.max()) == 1.0
+    with pytest.raises(ValueError, match="channels"):
+        map_scale_for(3)
+
+
 def test_shipped_checkpoint_loads_and_beats_the_naive_baseline() -> None:
     from policy.baselines import make_policy
     from policy.evaluation import evaluate
-    from policy.nn import shipped_checkpoint
+    from policy.loops import LoopGuard
+    from policy.nn import load_shipped_policy, shipped_checkpoint
 
     assert shipped_checkpoint().exists()
     cfg = GridConfig()
+    assert isinstance(load_shipped_policy(cfg), LoopGuard)
     ours = evaluate(make_policy("dualstream", cfg), cfg, 300, seed=11, progress=False).columns
     ns = evaluate(make_policy("ns", cfg), cfg, 300, seed=11, progress=False).columns
     assert ours["success_pct"] > 99.0
