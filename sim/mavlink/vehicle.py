@@ -9,6 +9,7 @@ called from the lock-step runner, so simulated time drives it all.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ from .telemetry import BUILDERS, DEFAULT_RATES, Snapshot
 from .udp import UdpLink
 
 M = mavlink
+log = logging.getLogger(__name__)
 FORCE_MAGIC = 21196
 #: PX4 modes flown from RC sticks; no MANUAL_CONTROL is simulated, so they are refused
 STICK_MODES = {"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"}
@@ -59,6 +61,7 @@ class VehicleCounters:
     denied: int = 0
     fence_rejections: int = 0
     frames_sent: int = 0
+    handler_errors: list[str] = field(default_factory=list)  # messages that raised in a handler
     statustext: list[str] = field(default_factory=list)
 
 
@@ -154,7 +157,11 @@ class MavlinkVehicle:
         """Answer whatever has arrived, without advancing time (between physics ticks)."""
         for link in self.links:
             for msg in link.poll():
-                self.handle(msg)
+                try:
+                    self.handle(msg)
+                except Exception as e:  # a well-formed message with absurd content: drop it, fly on
+                    self.counters.handler_errors.append(f"{msg.get_type()}: {type(e).__name__}: {e}")
+                    log.exception("dropped %s after a handler error", msg.get_type())
 
     def tick(self, t: float) -> None:
         self.t = t
@@ -398,6 +405,8 @@ class MavlinkVehicle:
             return self._ack(cmd, R.MAV_RESULT_ACCEPTED if ok else R.MAV_RESULT_DENIED, msg)
         if cmd == R.MAV_CMD_SET_MESSAGE_INTERVAL:
             msg_id, interval = q[0], p[1]
+            if not (math.isfinite(p[0]) and math.isfinite(interval)):
+                return self._ack(cmd, R.MAV_RESULT_DENIED, msg)  # NaN is no message id, and no interval
             if msg_id not in DEFAULT_RATES and msg_id != M.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
                 return self._ack(cmd, R.MAV_RESULT_UNSUPPORTED, msg)
             self.rates[msg_id] = DEFAULT_RATES.get(msg_id, 0.0) if interval == 0 else (0.0 if interval < 0 else 1e6 / interval)
@@ -405,6 +414,8 @@ class MavlinkVehicle:
             return self._ack(cmd, R.MAV_RESULT_ACCEPTED, msg)
         if cmd == R.MAV_CMD_REQUEST_MESSAGE:
             # the ACK first, then the message, as the command protocol describes
+            if not math.isfinite(p[0]):
+                return self._ack(cmd, R.MAV_RESULT_DENIED, msg)
             if q[0] not in REQUESTABLE or (q[0] == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE and self.camera is None):
                 return self._ack(cmd, R.MAV_RESULT_UNSUPPORTED, msg)
             if q[0] == M.MAVLINK_MSG_ID_GPS_RAW_INT and self.fix is None:
@@ -440,6 +451,12 @@ class MavlinkVehicle:
         if name == "AUTO.LAND":
             self.model.land()
         self._ack(cmd, M.MAV_RESULT_ACCEPTED, msg)
+
+    def _on_data_transmission_handshake(self, msg) -> None:
+        """The image protocol's own request: a receiver's handshake asks for one frame (we send
+        PNG whatever type it names, and say so in our handshake)."""
+        if self.camera is not None:
+            self._pending_frames += 1
 
     def _on_set_mode(self, msg) -> None:
         """The deprecated SET_MODE message: obeyed like DO_SET_MODE, without the ACK."""

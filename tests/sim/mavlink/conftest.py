@@ -33,3 +33,4 @@ def sitl_factory():
     for s in started:
         s.stop()
         assert not s.errors, s.errors[:1]
+        assert not s.vehicle.counters.handler_errors, s.vehicle.counters.handler_errors[:3]

@@ -231,6 +231,10 @@ def test_camera_frames_over_image_transmission_and_tlog(sitl_factory, tmp_path) 
                 frame = asm.feed(m)
         assert frame is not None and frame.shape == (50, 50, 3)
         assert 60 < frame[..., 1].mean() < 200, "a rendered field, not a blank"
+        # the protocol's own request: the receiver's handshake
+        g.c.mav.data_transmission_handshake_send(M.MAVLINK_DATA_STREAM_IMG_PNG, 0, 0, 0, 0, 0, 0)
+        hs = g.recv("DATA_TRANSMISSION_HANDSHAKE", 3)
+        assert hs is not None and hs.type == M.MAVLINK_DATA_STREAM_IMG_PNG and hs.width == 50 and hs.packets > 0
     finally:
         g.close()
     sitl.stop()
@@ -330,5 +334,42 @@ def test_two_vehicles_share_the_gcs_port_with_their_own_system_ids(sitl_factory)
         assert ack is not None and ack.get_srcSystem() == 5 and ack.result == M.MAV_RESULT_ACCEPTED
         time.sleep(0.2)
         assert b.model.state.armed and not a.model.state.armed, "only the addressed vehicle acts"
+    finally:
+        g.close()
+
+
+def test_well_formed_messages_with_absurd_content_are_survived(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        nan, inf = math.nan, math.inf
+        mav, sysid = g.c.mav, g.sysid
+        for cmd in (M.MAV_CMD_COMPONENT_ARM_DISARM, M.MAV_CMD_DO_SET_MODE, M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND,
+                    M.MAV_CMD_MISSION_START, M.MAV_CMD_DO_REPOSITION, M.MAV_CMD_DO_CHANGE_SPEED,
+                    M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAV_CMD_REQUEST_MESSAGE):
+            for v in (nan, inf, -inf, 1e30, -1e30):
+                mav.command_long_send(sysid, 1, cmd, 0, v, v, v, v, v, v, v)
+                mav.command_int_send(sysid, 1, 255, cmd, 0, 0, v, v, v, v, 2**31 - 1, -(2**31), v)
+        mav.mission_item_int_send(sysid, 1, 7, 0, 16, 0, 1, 0, 0, 0, 0, 0, 0, 0)  # no upload under way
+        mav.mission_request_int_send(sysid, 1, 65535)
+        mav.mission_set_current_send(sysid, 1, 65535)
+        mav.mission_count_send(sysid, 1, 65535, M.MAV_MISSION_TYPE_MISSION)
+        mav.mission_count_send(sysid, 1, 0, 255)
+        mav.param_set_send(sysid, 1, b"\xff\xfe\x00", nan, M.MAV_PARAM_TYPE_REAL32)
+        mav.param_set_send(sysid, 1, b"NAV_ACC_RAD", inf, M.MAV_PARAM_TYPE_REAL32)
+        mav.param_request_read_send(sysid, 1, b"", 30000)
+        mav.set_position_target_local_ned_send(0, sysid, 1, 1, 0, nan, inf, -inf, nan, nan, nan, 0, 0, 0, nan, nan)
+        mav.set_position_target_global_int_send(0, sysid, 1, 6, 0, 2**31 - 1, -(2**31), nan, 0, 0, 0, 0, 0, 0, 0, 0)
+        time.sleep(0.5)
+        while g.c.recv_match(blocking=False) is not None:  # the answers to all that
+            pass
+        ack = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        assert ack is not None and ack.result == M.MAV_RESULT_ACCEPTED, "still answering"
+        assert sitl.running and not sitl.errors
+        assert not sitl.vehicle.counters.handler_errors, sitl.vehicle.counters.handler_errors[:3]
+        assert np.all(np.isfinite(sitl.model.state.position_ned)), "nothing absurd reached the airframe"
+        assert sitl.vehicle.params["NAV_ACC_RAD"] == pytest.approx(0.4)
+        rates = sitl.vehicle.rates
+        assert all(math.isfinite(hz) for hz in rates.values()) and rates[M.MAVLINK_MSG_ID_HEARTBEAT] == 1.0
     finally:
         g.close()
