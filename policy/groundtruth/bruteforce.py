@@ -7,8 +7,6 @@ from itertools import permutations
 
 import numpy as np
 
-from .lookahead import intercept
-
 
 def pt_bruteforce(start: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """start (n, 2), targets (n, R, 2) -> optimal lengths (n,), by trying all R! orders."""
@@ -22,16 +20,27 @@ def pt_bruteforce(start: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return best
 
 
+def intercept_scan(
+    paths: np.ndarray, k: np.ndarray, cell: np.ndarray, time: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Earliest interception by checking every future time of the whole horizon."""
+    n, big_t = paths.shape[:2]
+    rows = np.arange(n)
+    ts = np.arange(big_t)
+    pos = paths[rows[:, None], ts[None], k[:, None]]  # (n, T, 2)
+    reach = (np.abs(pos - cell[:, None]).sum(-1) <= ts - time[:, None]) & (ts >= time[:, None])
+    t = np.where(reach.any(1), reach.argmax(1), big_t - 1)
+    return t, paths[rows, t, k]
+
+
 def lookahead_bruteforce(start: np.ndarray, paths: np.ndarray) -> np.ndarray:
-    """Earliest completion over all orders, leg by leg with earliest interception."""
+    """Earliest completion over all R! orders, leg by leg with earliest interception."""
     n, _, r = paths.shape[:3]
     best = np.full(n, np.iinfo(np.int64).max)
-    rows = np.arange(n)
     for order in permutations(range(r)):
         t = np.zeros(n, dtype=np.int64)
         cell = start.copy()
         for k in order:
-            t, cell = intercept(paths, np.full(n, k), cell, t)
+            t, cell = intercept_scan(paths, np.full(n, k), cell, t)
         best = np.minimum(best, t)
-    del rows
     return best

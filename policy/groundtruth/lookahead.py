@@ -14,33 +14,43 @@ import numpy as np
 
 from .pt import backtrack
 
-#: how far ahead an interception is searched; a 10 x 10 target fleeing at 1/3 speed is
-#: always caught within ~27 steps, so 64 leaves room for larger grids and slower agents.
-WINDOW = 64
-
 
 def intercept(
-    paths: np.ndarray, k: np.ndarray, cell: np.ndarray, time: np.ndarray
+    paths: np.ndarray,
+    k: np.ndarray,
+    cell: np.ndarray,
+    time: np.ndarray,
+    episode: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Earliest interception of target k[i] in episode i from (cell[i], time[i]).
+    """Earliest interception of target k[i] of episode episode[i] (default i) from
+    (cell[i], time[i]); paths (n, T, R, 2). Returns (times, cells); time T - 1 if never.
 
-    paths (n, T, R, 2); returns (times (n,), cells (n, 2)); time T - 1 when none in range.
+    The gap f(t') = |P_k(t') - cell|_1 - (t' - time) shrinks by at most 2 per step (agent
+    and target each move at most one cell), so no t' < t + ceil(f(t) / 2) can close it:
+    jumping by that much is exact, needs no search window and takes a few iterations.
     """
-    n, big_t = paths.shape[:2]
-    rows = np.arange(n)
-    ts = np.minimum(time[:, None] + np.arange(WINDOW)[None], big_t - 1)  # (n, W)
-    pos = paths[rows[:, None], ts, k[:, None]]  # (n, W, 2)
-    reach = np.abs(pos - cell[:, None, :]).sum(-1) <= ts - time[:, None]
-    first = reach.argmax(axis=1)
-    ok = reach[rows, first]
-    t_hit = np.where(ok, ts[rows, first], big_t - 1)
-    return t_hit, paths[rows, t_hit, k]
+    big_t = paths.shape[1]
+    e = np.arange(len(k)) if episode is None else np.asarray(episode)
+    k = np.asarray(k)
+    t = np.minimum(np.asarray(time, dtype=np.int64), big_t - 1)
+    todo = np.arange(len(k))
+    while len(todo):
+        tt = t[todo]
+        gap = np.abs(paths[e[todo], tt, k[todo]] - cell[todo]).sum(-1) - (tt - time[todo])
+        more = (gap > 0) & (tt < big_t - 1)
+        todo = todo[more]
+        t[todo] = np.minimum(tt[more] + (gap[more] + 1) // 2, big_t - 1)
+    return t, paths[e, t, k]
 
 
 def lookahead_dp(
     start: np.ndarray, paths: np.ndarray, rng: np.random.Generator | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """start (n, 2), paths (n, T, R, 2) -> (lengths (n,), orders (n, R)). Ties at random."""
+    """start (n, 2), paths (n, T, R, 2) -> (lengths (n,), orders (n, R)). Ties at random.
+
+    One vectorised step per subset: every (last target j, previous target i) pair of the
+    subset is intercepted at once over all episodes.
+    """
     n, _, r = paths.shape[:3]
     rows = np.arange(n)
     full = (1 << r) - 1
@@ -48,30 +58,26 @@ def lookahead_dp(
     dp = np.full((n, 1 << r, r), big, dtype=np.int64)
     parent = np.full((n, 1 << r, r), -1, dtype=np.int8)
     noise = rng.random((n, 1 << r, r)) * 0.5 if rng is not None else np.zeros((n, 1 << r, r))
-    zero = np.zeros(n, dtype=np.int64)
     for j in range(r):
-        t, _ = intercept(paths, np.full(n, j), start, zero)
-        dp[:, 1 << j, j] = t
+        dp[:, 1 << j, j], _ = intercept(paths, np.full(n, j), start, np.zeros(n, dtype=np.int64))
     for mask in range(1, full + 1):
         members = [i for i in range(r) if mask >> i & 1]
-        if len(members) < 2:
+        m = len(members)
+        if m < 2:
             continue
-        for j in members:
-            prev = mask ^ (1 << j)
-            best = np.full(n, big, dtype=np.int64)
-            best_key = np.full(n, np.inf)
-            arg = np.full(n, -1, dtype=np.int64)
-            for i in (i for i in range(r) if prev >> i & 1):
-                t0 = dp[:, prev, i]
-                cell = paths[rows, np.minimum(t0, paths.shape[1] - 1), i]
-                t, _ = intercept(paths, np.full(n, j), cell, t0)
-                key = t + noise[:, prev, i]
-                better = key < best_key
-                best_key = np.where(better, key, best_key)
-                best = np.where(better, t, best)
-                arg = np.where(better, i, arg)
-            dp[:, mask, j] = best
-            parent[:, mask, j] = arg
-    key = dp[:, full, :] + noise[:, full, :]
-    cur = key.argmin(axis=1)
+        # pairs (j last, i before it), grouped by j: (m, m - 1)
+        js = np.repeat(members, m - 1)
+        iss = np.array([i for j in members for i in members if i != j])
+        prevs = mask ^ (1 << js)
+        t0 = dp[:, prevs, iss]  # (n, P)
+        cells = paths[rows[:, None], t0, iss[None]]  # (n, P, 2)
+        p = len(js)
+        t, _ = intercept(
+            paths, np.tile(js, n), cells.reshape(-1, 2), t0.reshape(-1), np.repeat(rows, p)
+        )
+        t = t.reshape(n, m, m - 1)
+        key = (t + noise[:, prevs, iss].reshape(n, m, m - 1)).argmin(axis=2)  # (n, m)
+        dp[:, mask, members] = np.take_along_axis(t, key[..., None], axis=2)[..., 0]
+        parent[:, mask, members] = iss.reshape(m, m - 1)[np.arange(m)[None], key]
+    cur = (dp[:, full, :] + noise[:, full, :]).argmin(axis=1)
     return dp[rows, full, cur], backtrack(parent, cur)

@@ -3,6 +3,8 @@ import pytest
 
 from policy.groundtruth import (
     held_karp,
+    intercept,
+    intercept_scan,
     lookahead_bruteforce,
     lookahead_dp,
     optimal_lengths,
@@ -13,9 +15,9 @@ from policy.groundtruth import (
 from sim.gridworld import Action, GridConfig, sample_episodes
 
 
-@pytest.mark.parametrize("r", [1, 2, 5, 7])
+@pytest.mark.parametrize("r", [1, 2, 5, 7, 8])
 def test_held_karp_equals_brute_force(r: int) -> None:
-    ep = sample_episodes(GridConfig(n_targets=r), 150 if r < 7 else 40, seed=r)
+    ep = sample_episodes(GridConfig(n_targets=r), {7: 40, 8: 8}.get(r, 150), seed=r)
     hk, orders = held_karp(ep.agent, ep.targets, np.random.default_rng(0))
     assert (hk == pt_bruteforce(ep.agent, ep.targets)).all()
     assert (np.sort(orders, axis=1) == np.arange(r)).all(), "orders are permutations"
@@ -36,9 +38,36 @@ def test_lookahead_dp_equals_exhaustive_orders(motion: str, dist: str) -> None:
     assert (dp == lookahead_bruteforce(ep.agent, ep.paths)).all()
 
 
+def test_interception_jumps_equal_a_scan_of_the_whole_horizon() -> None:
+    # a large grid: interceptions far beyond any fixed search window
+    ep = sample_episodes(GridConfig(width=45, height=45, n_targets=4, motion="random_walk"), 300, 4)
+    rng = np.random.default_rng(0)
+    n = len(ep)
+    k = rng.integers(0, 4, n)
+    cell = rng.integers(0, 45, (n, 2))
+    time = rng.integers(0, 280, n)
+    t, c = intercept(ep.paths, k, cell, time)
+    ts, cs = intercept_scan(ep.paths, k, cell, time)
+    assert (t == ts).all() and (c == cs).all()
+    assert (t >= time).all() and (t - time).max() > 64
+
+
+def test_lookahead_dp_on_a_large_grid_and_six_targets() -> None:
+    ep = sample_episodes(GridConfig(width=40, height=40, n_targets=3, motion="random_walk"), 60, 2)
+    assert (lookahead_dp(ep.agent, ep.paths)[0] == lookahead_bruteforce(ep.agent, ep.paths)).all()
+    ep = sample_episodes(GridConfig(n_targets=6, motion="herd"), 12, 6)
+    assert (lookahead_dp(ep.agent, ep.paths)[0] == lookahead_bruteforce(ep.agent, ep.paths)).all()
+
+
 @pytest.mark.parametrize(
     "kwargs",
-    [{}, {"distribution": "gaussian"}, {"motion": "random_walk"}, {"motion": "herd", "distribution": "equidistant"}],
+    [
+        {},
+        {"distribution": "gaussian"},
+        {"motion": "random_walk"},
+        {"motion": "herd", "distribution": "equidistant"},
+        {"motion": "random_walk", "width": 40, "height": 40, "n_targets": 3},
+    ],
 )
 def test_replayed_plans_find_all_targets_in_the_optimal_number_of_moves(kwargs: dict) -> None:
     ep = sample_episodes(GridConfig(**kwargs), 400, seed=5)
