@@ -4,8 +4,10 @@ from .images import encode_png, frame_messages
 from .modes import px4_custom_mode, px4_mode_name
 from .sitl import Sitl, SitlConfig
 from .tlog import TlogWriter
+from .udp import LinkStats, UdpLink
 from .vehicle import Geofence, MavlinkVehicle
 
 __all__ = [
-    "Geofence", "MavlinkVehicle", "Sitl", "SitlConfig", "TlogWriter", "encode_png", "frame_messages", "px4_custom_mode", "px4_mode_name",
+    "Geofence", "LinkStats", "MavlinkVehicle", "Sitl", "SitlConfig", "TlogWriter", "UdpLink",
+    "encode_png", "frame_messages", "px4_custom_mode", "px4_mode_name",
 ]

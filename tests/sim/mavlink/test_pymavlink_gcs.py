@@ -373,3 +373,29 @@ def test_well_formed_messages_with_absurd_content_are_survived(sitl_factory) -> 
         assert all(math.isfinite(hz) for hz in rates.values()) and rates[M.MAVLINK_MSG_ID_HEARTBEAT] == 1.0
     finally:
         g.close()
+
+
+def test_return_to_launch_climbs_returns_lands_and_disarms(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic", speedup=12.0)
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        home = g.recv("HOME_POSITION", 5)
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        north = home.latitude * 1e-7 + 8 / 111_200.0
+        ack = g.command(M.MAV_CMD_DO_REPOSITION, -1, 0, 0, math.nan, north, home.longitude * 1e-7, home.altitude * 1e-3 + 3.5)
+        assert ack.result == M.MAV_RESULT_ACCEPTED
+        end = time.monotonic() + 5
+        while time.monotonic() < end and sitl.vehicle.estimate()[0] < 7.5:
+            time.sleep(0.05)
+        assert g.command(M.MAV_CMD_NAV_RETURN_TO_LAUNCH).result == M.MAV_RESULT_ACCEPTED
+        highest, end = 0.0, time.monotonic() + 10
+        while time.monotonic() < end and sitl.model.state.armed:
+            highest = max(highest, -float(sitl.model.state.position_ned[2]))
+            time.sleep(0.02)
+        assert not sitl.model.state.armed and sitl.model.state.landed, "landed and disarmed"
+        assert highest > sitl.vehicle.params["RTL_RETURN_ALT"] - 1.0, "climbed to RTL_RETURN_ALT first"
+        assert np.hypot(*sitl.vehicle.estimate()[:2]) < 1.0, "back over home"
+    finally:
+        g.close()
