@@ -28,17 +28,41 @@ def register(app: typer.Typer) -> None:
         width: int = WIDTH,
         height: int = HEIGHT,
         targets: int = TARGETS,
+        rendered: bool = typer.Option(
+            False, "--rendered", help="Views from the simulated 50x50 camera (the paper's +S)."
+        ),
+        shard_size: int = typer.Option(100_000, "--shard-size", min=1, help="Samples per shard."),
         overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing dataset."),
+        progress: bool = typer.Option(True, "--progress/--quiet", help="Show a progress bar."),
     ) -> None:
         """Synthesise training samples from optimal (or CU) decisions."""
         from policy.data import open_dataset, synthesize
 
         cfg = grid_config(distribution, motion, map_kind, width, height, targets)
         if method is Method.cu and cfg.moving:
-            raise typer.BadParameter("CU is defined for static targets; use --method pt", param_hint="--method")
+            raise typer.BadParameter(
+                "CU is defined for static targets; use --method pt", param_hint="--method"
+            )
+        if (out / "meta.json").exists() and not overwrite:
+            raise typer.BadParameter(f"{out} already holds a dataset; --overwrite replaces it",
+                                     param_hint="--out")
+        view_fn, renderer = None, None
+        if rendered:
+            from sim.vehicle import ViewRenderer
+
+            renderer = ViewRenderer(cfg.width, cfg.height, cfg.n_targets, image=50, seed=seed)
+
+            def view_fn(world):  # noqa: ANN001, ANN202 - BatchGridWorld -> (n, 3, 50, 50) uint8
+                return renderer.render_views(world.targets(), world.agent, cfg.width, cfg.height)
+
         try:
-            path = synthesize(cfg, episodes, seed, out, method=method.value, overwrite=overwrite)
+            path = synthesize(cfg, episodes, seed, out, method=method.value, shard_size=shard_size,
+                              view_fn=view_fn, progress=progress, overwrite=overwrite)
         except FileExistsError as e:
             raise typer.BadParameter(str(e), param_hint="--out") from e
+        finally:
+            if renderer is not None:
+                renderer.close()
         ds = open_dataset(path)
-        typer.echo(f"{path}: {len(ds)} samples from {episodes} episodes in {len(ds.meta['shards'])} shard(s)")
+        typer.echo(f"{path}: {len(ds)} samples from {episodes} episodes in "
+                   f"{len(ds.meta['shards'])} shard(s)")

@@ -32,8 +32,13 @@ class ShardWriter:
         if shard_size < 1:
             raise ValueError("shard_size must be >= 1")
         self.out = Path(out)
-        if (self.out / META).exists() and not overwrite:
-            raise FileExistsError(f"{self.out} already holds a dataset; pass overwrite to replace it")
+        if self.out.exists() and not self.out.is_dir():
+            raise FileExistsError(f"{self.out} is a file, not a dataset directory")
+        if (self.out / META).exists():
+            if not overwrite:
+                raise FileExistsError(f"{self.out} already holds a dataset (overwrite=True replaces it)")
+            # from here on the directory is not a valid dataset until the new meta lands
+            (self.out / META).unlink()
         self.out.mkdir(parents=True, exist_ok=True)
         self.shard_size = shard_size
         self._buf: dict[str, list[np.ndarray]] = {k: [] for k in KEYS}
@@ -74,6 +79,10 @@ class ShardWriter:
             "shards": self.shards,
         }
         atomic_write_json(self.out / META, record)
+        keep = {s["file"] for s in self.shards}
+        for stale in self.out.glob("shard-*.npz"):  # left by a replaced, larger dataset
+            if stale.name not in keep:
+                stale.unlink()
         return self.out
 
 
@@ -123,17 +132,30 @@ class Dataset:
     def iter_batches(
         self, batch_size: int, shuffle: bool = True, seed: int = 0
     ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Stream batches shard by shard (shard order and samples shuffled when asked)."""
+        """Stream batches reading one shard at a time (shard order and the samples within a
+        shard shuffled when asked). Batches run across shard boundaries, so all but the last
+        hold exactly batch_size samples."""
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1 (got {batch_size})")
         rng = np.random.default_rng(seed)
         order = np.arange(len(self.meta["shards"]))
         if shuffle:
             rng.shuffle(order)
+        left: list[np.ndarray] | None = None
         for i in order:
             s = self.shard(int(i))
             idx = rng.permutation(len(s["actions"])) if shuffle else np.arange(len(s["actions"]))
-            for b in range(0, len(idx), batch_size):
-                j = idx[b : b + batch_size]
-                yield s["views"][j], s["maps"][j], s["actions"][j].astype(np.int64)
+            cur = [s["views"][idx], s["maps"][idx], s["actions"][idx]]
+            if left is not None:
+                cur = [np.concatenate([a, b]) for a, b in zip(left, cur, strict=True)]
+            full = len(cur[2]) // batch_size * batch_size
+            for b in range(0, full, batch_size):
+                yield cur[0][b : b + batch_size], cur[1][b : b + batch_size], cur[2][
+                    b : b + batch_size
+                ].astype(np.int64)
+            left = [a[full:] for a in cur]
+        if left is not None and len(left[2]):
+            yield left[0], left[1], left[2].astype(np.int64)
 
 
 def open_dataset(path: str | Path) -> Dataset:

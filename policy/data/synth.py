@@ -27,6 +27,14 @@ def chunk_seed(seed: int, chunk: int) -> int:
     return int(np.random.SeedSequence([seed, chunk]).generate_state(1, dtype=np.uint64)[0] >> 2)
 
 
+def _views(view_fn: ViewFn, world: BatchGridWorld) -> np.ndarray:
+    """A renderer's frames, checked: a wrong shape would otherwise end up in every shard."""
+    v = np.asarray(view_fn(world))
+    if v.dtype != np.uint8 or v.ndim != 4 or v.shape[:2] != (world.n, 3):
+        raise ValueError(f"view_fn must return (n={world.n}, 3, H, W) uint8 frames, got {v.shape} {v.dtype}")
+    return v
+
+
 def synthesize(
     cfg: GridConfig,
     episodes: int,
@@ -39,6 +47,9 @@ def synthesize(
     progress: bool = True,
     overwrite: bool = False,
 ) -> Path:
+    """Write the (I, M, a) samples of `episodes` solved episodes to the dataset directory `out`
+    and return it. `view_fn(world) -> (n, 3, H, W) uint8` replaces the grid view I (rendered
+    frames, the paper's +S); `method` 'pt' is optimal (lookahead for moving targets)."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1 (got {episodes})")
     writer = ShardWriter(Path(out), shard_size, overwrite)
@@ -53,7 +64,7 @@ def synthesize(
         world = BatchGridWorld(ep, cs)
         ids = np.arange(done, done + n, dtype=np.int32)
         while not world.done.all():
-            obs = observe(world, None if view_fn is None else view_fn(world))
+            obs = observe(world, None if view_fn is None else _views(view_fn, world))
             a = policy.act(obs)
             act = obs.active
             writer.add(obs.views[act], obs.maps[act].astype(np.uint8), a[act].astype(np.int8), ids[act])

@@ -77,3 +77,68 @@ def test_existing_dataset_is_not_overwritten_silently(tmp_path: Path) -> None:
     with pytest.raises(FileExistsError):
         synthesize(GridConfig(), 5, 2, tmp_path / "ds", progress=False)
     assert (tmp_path / "ds" / "meta.json").read_text() == before
+
+
+def test_batches_are_full_across_shard_boundaries(tmp_path: Path) -> None:
+    ds = open_dataset(synthesize(GridConfig(), 40, 2, tmp_path / "ds", shard_size=170, progress=False))
+    assert len(ds.meta["shards"]) > 2
+    for shuffle in (False, True):
+        sizes = [len(a) for _, _, a in ds.iter_batches(64, shuffle=shuffle, seed=3)]
+        assert sum(sizes) == len(ds) and set(sizes[:-1]) == {64} and 0 < sizes[-1] <= 64
+    ordered = np.concatenate([a for _, _, a in ds.iter_batches(50, shuffle=False)])
+    assert (ordered == ds.load()[2]).all()
+    with pytest.raises(ValueError, match="batch_size"):
+        next(ds.iter_batches(0))
+
+
+def test_tampered_shard_or_meta_names_the_file(tmp_path: Path) -> None:
+    out = synthesize(GridConfig(), 30, 1, tmp_path / "ds", shard_size=200, progress=False)
+    shard = out / "shard-00000.npz"
+    good = bytearray(shard.read_bytes())
+    bad = good.copy()
+    bad[len(bad) // 2] ^= 0xFF  # one flipped byte, same length
+    shard.write_bytes(bytes(bad))
+    with pytest.raises(DatasetError, match="shard-00000.npz.*checksum"):
+        open_dataset(out).load()
+    shard.write_bytes(bytes(good))
+    meta = json.loads((out / "meta.json").read_text())
+    meta["shards"][0]["samples"] += 1
+    (out / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(DatasetError, match="shard-00000.npz.*different lengths"):
+        open_dataset(out).load()
+
+
+def test_overwrite_replaces_the_whole_dataset(tmp_path: Path) -> None:
+    synthesize(GridConfig(), 40, 1, tmp_path / "ds", shard_size=100, progress=False)
+    out = synthesize(GridConfig(), 5, 2, tmp_path / "ds", shard_size=100, progress=False, overwrite=True)
+    ds = open_dataset(out)
+    assert ds.meta["seed"] == 2 and ds.meta["episodes"] == 5
+    assert sorted(p.name for p in out.glob("shard-*.npz")) == [s["file"] for s in ds.meta["shards"]]
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(FileExistsError, match="is a file"):
+        synthesize(GridConfig(), 5, 2, tmp_path / "f", progress=False)
+
+
+def test_views_from_the_simulated_camera(tmp_path: Path) -> None:
+    from sim.vehicle import ViewRenderer  # the +S sensor, plugged in through view_fn
+
+    cfg = GridConfig()
+    r = ViewRenderer(cfg.width, cfg.height, cfg.n_targets, image=50, seed=0)
+    try:
+        def camera(world: BatchGridWorld) -> np.ndarray:
+            return r.render_views(world.targets(), world.agent, cfg.width, cfg.height)
+
+        out = synthesize(cfg, 3, 4, tmp_path / "ds", view_fn=camera, progress=False)
+        ds = open_dataset(out)
+        views, maps, actions = ds.load()
+        assert ds.meta["rendered"] and ds.meta["view_shape"] == [3, 50, 50]
+        assert views.shape == (len(actions), 3, 50, 50) and views.dtype == np.uint8
+        start = BatchGridWorld(sample_episodes(cfg, 3, chunk_seed(4, 0)), 0)
+        assert (views[0] == camera(start)[0]).all()
+        assert views.std() > 0, "frames show the field, not a blank image"
+        with pytest.raises(ValueError, match=r"view_fn must return \(n=3, 3, H, W\) uint8"):
+            synthesize(cfg, 3, 4, tmp_path / "bad", progress=False,
+                       view_fn=lambda w: camera(w).astype(np.float32))
+        assert not (tmp_path / "bad" / "meta.json").exists()
+    finally:
+        r.close()
