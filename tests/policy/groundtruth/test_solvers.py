@@ -12,7 +12,7 @@ from policy.groundtruth import (
     solve,
     step_towards,
 )
-from sim.gridworld import Action, GridConfig, sample_episodes
+from sim.gridworld import Action, BatchGridWorld, Episodes, GridConfig, sample_episodes
 
 
 @pytest.mark.parametrize("r", [1, 2, 5, 7, 8])
@@ -74,6 +74,32 @@ def test_replayed_plans_find_all_targets_in_the_optimal_number_of_moves(kwargs: 
     plans = solve(ep, "pt", seed=2)
     assert (plans.lengths == optimal_lengths(ep)).all()
     assert ((plans.actions >= 0).sum(axis=1) == plans.lengths).all()
+    world = replay(ep, plans.actions)
+    assert world.found.all() and (world.t == plans.lengths).all() and world.replaced.sum() == 0
+
+
+def replay(ep: Episodes, actions: np.ndarray) -> BatchGridWorld:
+    """Play recorded actions in a fresh world, as the evaluation would see them."""
+    world = BatchGridWorld(ep, seed=99)
+    for col in actions.T:
+        world.step(np.where(col < 0, 0, col))
+    return world
+
+
+def test_cu_walks_to_a_nearest_unvisited_target_each_leg() -> None:
+    ep = sample_episodes(GridConfig(n_targets=6), 300, seed=12)
+    plans = solve(ep, "cu", seed=3)
+    world = replay(ep, plans.actions)
+    assert world.found.all() and (world.t == plans.lengths).all()
+    for i in range(len(ep)):
+        order = np.argsort(world.find_moves[i])
+        pos, t, left = ep.agent[i], 0, set(range(6))
+        for k in order:
+            d = {j: int(np.abs(ep.targets[i, j] - pos).sum()) for j in left}
+            assert d[k] == min(d.values()), f"episode {i}: target {k} is not a nearest one"
+            assert world.find_moves[i, k] - t == d[k], "each leg is a shortest path"
+            pos, t = ep.targets[i, k], world.find_moves[i, k]
+            left.remove(k)
 
 
 def test_cu_is_never_better_than_pt_and_often_optimal() -> None:
