@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pt import backtrack
+from .pt import backtrack, in_chunks
 
 
 def intercept(
@@ -51,6 +51,12 @@ def lookahead_dp(
     One vectorised step per subset: every (last target j, previous target i) pair of the
     subset is intercepted at once over all episodes.
     """
+    return in_chunks(_lookahead_dp, start, paths, paths.shape[2], rng)
+
+
+def _lookahead_dp(
+    start: np.ndarray, paths: np.ndarray, rng: np.random.Generator | None
+) -> tuple[np.ndarray, np.ndarray]:
     n, _, r = paths.shape[:3]
     rows = np.arange(n)
     full = (1 << r) - 1

@@ -9,15 +9,38 @@ always one of the exactly optimal orders.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .legs import manhattan
+
+#: DP table entries (n * 2^R * R) per batch: bounds memory (~40 MB) for many episodes or targets
+TABLE_ENTRIES = 1 << 22
+
+Solver = Callable[..., tuple[np.ndarray, np.ndarray]]
+
+
+def in_chunks(solver: Solver, start: np.ndarray, data: np.ndarray, r: int,
+              rng: np.random.Generator | None) -> tuple[np.ndarray, np.ndarray]:
+    """Run a subset DP over episodes in batches small enough for its (n, 2^R, R) tables."""
+    step = max(1, TABLE_ENTRIES // ((1 << r) * r))
+    if len(start) <= step:
+        return solver(start, data, rng)
+    parts = [solver(start[i : i + step], data[i : i + step], rng) for i in range(0, len(start), step)]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 def held_karp(
     start: np.ndarray, targets: np.ndarray, rng: np.random.Generator | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """start (n, 2), targets (n, R, 2) -> (lengths (n,), orders (n, R))."""
+    return in_chunks(_held_karp, start, targets, targets.shape[1], rng)
+
+
+def _held_karp(
+    start: np.ndarray, targets: np.ndarray, rng: np.random.Generator | None
+) -> tuple[np.ndarray, np.ndarray]:
     n, r = targets.shape[:2]
     d0 = manhattan(start[:, None, :], targets).astype(np.float64)  # (n, R)
     dd = manhattan(targets[:, :, None, :], targets[:, None, :, :]).astype(np.float64)  # (n, R, R)

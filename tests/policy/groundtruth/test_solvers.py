@@ -126,3 +126,16 @@ def test_solver_is_reproducible_and_ties_vary_with_seed() -> None:
     assert (a.actions == b.actions).all()
     c = solve(ep, "pt", seed=5)
     assert (c.lengths == a.lengths).all() and not (c.actions == a.actions).all()
+
+
+def test_batched_in_chunks_gives_the_same_optimum(monkeypatch: pytest.MonkeyPatch) -> None:
+    import policy.groundtruth.pt as pt
+
+    ep = sample_episodes(GridConfig(n_targets=5), 300, seed=21)
+    whole = held_karp(ep.agent, ep.targets)[0]
+    mv = sample_episodes(GridConfig(n_targets=4, motion="herd"), 100, seed=21)
+    whole_mv = lookahead_dp(mv.agent, mv.paths)[0]
+    monkeypatch.setattr(pt, "TABLE_ENTRIES", 700)  # a few episodes per chunk
+    assert (held_karp(ep.agent, ep.targets)[0] == whole).all()
+    assert (whole == pt_bruteforce(ep.agent, ep.targets)).all()
+    assert (lookahead_dp(mv.agent, mv.paths)[0] == whole_mv).all()
