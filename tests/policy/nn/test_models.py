@@ -108,3 +108,17 @@ def test_shipped_checkpoint_loads_and_beats_the_naive_baseline() -> None:
     assert ours["success_pct"] > 99.0
     assert ours["mean_moves"] < ns["mean_moves"]
     assert ours["loop_pct"] is not None, "runs under loop detection, as in the paper"
+
+
+def test_paper_architecture_on_the_grid_view_with_the_spatiotemporal_map() -> None:
+    cfg = ModelConfig(model="ssn", arch="paper", map_shape=(2, 10, 10), n_actions=5, map_scale=50.0)
+    p = build_model(cfg).eval().probabilities(torch.zeros(3, 3, 3, 3, dtype=torch.uint8), torch.zeros(3, 2, 10, 10))
+    assert p.shape == (3, 5) and torch.allclose(p.sum(1), torch.ones(3), atol=1e-5)
+
+
+def test_weights_that_do_not_fit_the_declared_network_are_refused(tmp_path: Path) -> None:
+    small = ModelConfig()
+    other = build_model(ModelConfig(map_shape=(1, 8, 8)))  # same layers, other dense sizes
+    path = save_checkpoint(tmp_path / "lying.pt", other, small)
+    with pytest.raises(CheckpointError, match="do not fit"):
+        load_model(path)
