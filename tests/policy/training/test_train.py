@@ -10,7 +10,7 @@ import torch
 
 from policy.data import synthesize
 from policy.nn import CheckpointError, build_model, load_model
-from policy.training import TrainConfig, kfold_split, train
+from policy.training import TrainConfig, kfold_split, plot_runs, train
 from policy.training.metrics_log import read_csv
 from sim.gridworld import GridConfig
 
@@ -52,6 +52,8 @@ def test_short_training_reduces_the_loss_and_writes_everything(dataset: Path, tm
     assert (tmp_path / "training_curve.png").read_bytes()[:4] == b"\x89PNG"
     assert any((tmp_path / "tensorboard" / "fold0").iterdir())
     assert not list(tmp_path.glob("*.partial.pt")), "finished folds leave no partial checkpoint"
+    fig6 = plot_runs({"150 episodes": rows, "first fold": rows[:3]}, tmp_path / "fig6.png")
+    assert fig6.read_bytes()[:4] == b"\x89PNG"
 
 
 def test_resume_gives_the_same_weights_as_an_uninterrupted_run(dataset: Path, tmp_path: Path) -> None:
