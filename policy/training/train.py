@@ -211,9 +211,9 @@ def fit_fold(data: Data, out: Path, tc: TrainConfig, fold: int, device: torch.de
         bar = tqdm(total=len(order), desc=f"fold {fold} epoch {epoch + 1}/{tc.epochs}", unit="sample",
                    unit_scale=True, disable=not progress or rank != 0, leave=False)
         for s in _batches(len(order), tc.batch):
-            j = order[s][rank::world]  # this rank's share of the global batch
-            if len(j) == 0:  # a last batch smaller than the group: every rank skips it alike
+            if len(order[s]) < world:  # a last batch too small to give every rank a sample: all skip it
                 continue
+            j = order[s][rank::world]  # this rank's share of the global batch
             loss, logits = net(data.views[j].to(device), data.maps[j].to(device), data.actions[j].to(device))
             opt.zero_grad(set_to_none=True)
             loss.backward()
