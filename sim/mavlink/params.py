@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pymavlink.dialects.v20 import common as mavlink
+
 
 @dataclass
 class Param:
@@ -55,3 +57,34 @@ class ParamStore:
 
     def index(self, name: str) -> int:
         return self.names.index(name)
+
+
+def _param_id(msg: mavlink.MAVLink_message) -> str:
+    raw = msg.param_id
+    text = raw if isinstance(raw, str) else bytes(raw).decode("ascii", errors="replace")
+    return text.rstrip("\0")
+
+
+def param_value(mav: mavlink.MAVLink, store: ParamStore, name: str) -> mavlink.MAVLink_message:
+    return mav.param_value_encode(name.encode(), store[name], mavlink.MAV_PARAM_TYPE_REAL32, len(store.names),
+                                  store.index(name))
+
+
+def param_replies(mav: mavlink.MAVLink, store: ParamStore,
+                  msg: mavlink.MAVLink_message) -> tuple[list[mavlink.MAVLink_message], str | None]:
+    """PARAM_REQUEST_LIST / PARAM_REQUEST_READ / PARAM_SET -> (PARAM_VALUEs to send, why a set
+    was refused). A refused set echoes the value kept, as PX4 does; an unknown name gets no
+    PARAM_VALUE (the client times out, as with PX4)."""
+    kind = msg.get_type()
+    if kind == "PARAM_REQUEST_LIST":
+        return [param_value(mav, store, n) for n in store.names], None
+    if kind == "PARAM_REQUEST_READ":
+        name = _param_id(msg)
+        if 0 <= msg.param_index < len(store.names):
+            name = store.names[msg.param_index]
+        return ([param_value(mav, store, name)] if name in store.params else []), None
+    if kind == "PARAM_SET":
+        name = _param_id(msg)
+        ok, why = store.set(name, float(msg.param_value))
+        return ([param_value(mav, store, name)] if name in store.params else []), (None if ok else why)
+    return [], None

@@ -152,10 +152,6 @@ class Sitl:
                 for link in links:
                     link.close()
                 raise ValueError(f"geofence: {why}")
-        if cfg.speedup > 1:
-            # companions pace their setpoint streams in wall-clock time: keep the offboard-loss
-            # timeout at about a second of *their* time when the simulation runs faster
-            self.vehicle.params.set("COM_OF_LOSS_T", min(60.0, cfg.speedup))
         self.t = 0.0
         self.errors: list[str] = []
         self._stop = threading.Event()

@@ -399,3 +399,37 @@ def test_return_to_launch_climbs_returns_lands_and_disarms(sitl_factory) -> None
         assert np.hypot(*sitl.vehicle.estimate()[:2]) < 1.0, "back over home"
     finally:
         g.close()
+
+
+def test_client_timers_run_on_wall_clock_when_the_simulation_races(sitl_factory) -> None:
+    """At speedup 0 simulated time runs hundreds of times faster than the ground station:
+    mission re-requests and the offboard-loss timeout must still wait for it."""
+    sitl = sitl_factory(physics="kinematic", speedup=0)
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        home = g.recv("HOME_POSITION", 5)
+        lat0, lon0 = home.latitude * 1e-7, home.longitude * 1e-7
+        items = [_item(g, i, M.MAV_CMD_NAV_WAYPOINT, lat0 + i * 1e-5, lon0, 3.5) for i in range(3)]
+        g.c.mav.mission_count_send(g.sysid, 1, len(items), M.MAV_MISSION_TYPE_MISSION)
+        first = g.recv("MISSION_REQUEST_INT", 3)
+        assert first is not None and first.seq == 0
+        time.sleep(0.2)  # a slow station: far longer than the retry period in simulated time
+        assert _upload_rest(g, items, first) == M.MAV_MISSION_ACCEPTED
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        hold = 0b0000_1101_1111_1000  # position only
+        g.c.mav.set_position_target_local_ned_send(0, g.sysid, 1, M.MAV_FRAME_LOCAL_NED, hold, 0, 0, -2.0,
+                                                   0, 0, 0, 0, 0, 0, 0, 0)
+        time.sleep(0.2)  # many simulated seconds, well within COM_OF_LOSS_T of wall-clock time
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0).result == M.MAV_RESULT_ACCEPTED
+    finally:
+        g.close()
+
+
+def _upload_rest(g: Gcs, items, first) -> int:
+    g.c.mav.send(items[first.seq])
+    while True:
+        m = g.recv(["MISSION_REQUEST_INT", "MISSION_ACK"], 5)
+        assert m is not None, "vehicle stopped asking for items"
+        if m.get_type() == "MISSION_ACK":
+            return m.type
+        g.c.mav.send(items[m.seq])
