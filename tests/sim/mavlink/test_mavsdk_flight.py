@@ -4,11 +4,16 @@ import asyncio
 import time
 
 import numpy as np
+import pytest
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission import MissionAsync
+from mavsdk.asyncio.plugins.offboard import OffboardAsync
+from mavsdk.asyncio.plugins.param import ParamAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.action import ActionError
 from mavsdk.plugins.mission import MissionItem, MissionPlan
+from mavsdk.plugins.offboard import PositionNedYaw
 from mavsdk.plugins.telemetry import FlightMode
 
 
@@ -85,3 +90,71 @@ def test_mavsdk_connect_health_arm_takeoff_mission_land_disarm(sitl_factory) -> 
     for corner in ([8, 0], [8, 8], [0, 8]):
         assert np.min(np.linalg.norm(v[:, :2] - corner, axis=1)) < 1.0, f"flew past {corner}"
     assert r["landed"] and not sitl.model.state.armed
+
+
+def _items(home, corners, alt: float) -> list[MissionItem]:
+    return [
+        MissionItem(
+            latitude_deg=home.latitude_deg + dn / 111_200.0,
+            longitude_deg=home.longitude_deg + de / (111_200.0 * np.cos(np.radians(home.latitude_deg))),
+            relative_altitude_m=alt, speed_m_s=3.0, is_fly_through=True, acceptance_radius_m=1.0,
+            vehicle_action=MissionItem.VehicleAction.NONE,
+        )
+        for dn, de in corners
+    ]
+
+
+def test_mavsdk_params_mission_download_geofence_offboard_and_return(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic", speedup=8.0)
+    port = sitl.cfg.api_ports[1]
+
+    async def fly() -> None:
+        m = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+        try:
+            await m.add_any_connection(f"udpin://0.0.0.0:{port}")
+            system = await m.first_autopilot(timeout_s=15.0)
+            assert system is not None, "MAVSDK discovered no autopilot"
+            tel, act, mis = TelemetryAsync(system), ActionAsync(system), MissionAsync(system)
+            par, off = ParamAsync(system), OffboardAsync(system)
+            await _until(tel.health_all_ok, 15, "health all ok")
+            # parameters
+            assert await par.get_param_float("NAV_ACC_RAD") == pytest.approx(0.4)
+            await par.set_param_float("NAV_ACC_RAD", 0.6)
+            assert await par.get_param_float("NAV_ACC_RAD") == pytest.approx(0.6)
+            assert sitl.vehicle.params["NAV_ACC_RAD"] == pytest.approx(0.6)
+            # mission download equals upload
+            home = await tel.home()
+            plan = MissionPlan(_items(home, [(5, 0), (5, 5), (0, 5)], 4.0))
+            await mis.upload_mission(plan)
+            got = (await mis.download_mission()).mission_items
+            assert [(round(i.latitude_deg, 7), round(i.longitude_deg, 7), i.relative_altitude_m) for i in got] == \
+                [(round(i.latitude_deg, 7), round(i.longitude_deg, 7), i.relative_altitude_m) for i in plan.mission_items]
+            # the geofence refuses a far goto, and MAVSDK hears it
+            await act.arm()
+            await act.takeoff()
+            await _until(tel.in_air, 15, "in air")
+            with pytest.raises(ActionError):
+                await act.goto_location(home.latitude_deg + 500 / 111_200.0, home.longitude_deg,
+                                        home.absolute_altitude_m + 4.0, 0.0)
+            # offboard position setpoints (MAVSDK streams them at 20 Hz)
+            await off.set_position_ned(PositionNedYaw(6.0, -3.0, -4.0, 0.0))
+            await off.start()
+
+            async def there() -> bool:
+                return bool(np.linalg.norm(sitl.vehicle.estimate() - [6.0, -3.0, -4.0]) < 0.3)
+
+            await _until(there, 15, "offboard setpoint reached")
+            assert await tel.flight_mode() == FlightMode.OFFBOARD
+            await off.stop()
+            await act.return_to_launch()
+
+            async def disarmed() -> bool:
+                return not await tel.armed()
+
+            await _until(disarmed, 30, "landed and disarmed after RTL")
+            assert np.hypot(*sitl.vehicle.estimate()[:2]) < 1.0, "back over home"
+        finally:
+            m.destroy()
+
+    asyncio.run(fly())
+    assert sitl.vehicle.counters.fence_rejections >= 1
