@@ -394,6 +394,8 @@ class MavlinkVehicle:
             # send PNG whatever type it names, and say so in our handshake)
             if self.camera is not None:
                 self._pending_frames += 1
+        elif kind == "TIMESYNC" and msg.tc1 == 0:  # a request: answer with our clock (simulated ns)
+            self.send(self.mav.timesync_encode(max(int(self.t * 1e9), 1), msg.ts1))
         elif kind == "SET_MODE":  # deprecated: obeyed like DO_SET_MODE, without an ACK
             name = px4_mode_name((msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF)
             if name is not None and name not in STICK_MODES and name != "OFFBOARD":

@@ -96,6 +96,9 @@ def test_command_acks_are_honest(sitl_factory) -> None:
         av = g.recv("AUTOPILOT_VERSION", 3)
         assert av.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
         assert not av.capabilities & M.MAV_PROTOCOL_CAPABILITY_FTP, "claims only what it does"
+        g.c.mav.timesync_send(0, 123_456_789)
+        ts = g.recv("TIMESYNC", 3, lambda m: m.ts1 == 123_456_789)
+        assert ts is not None and ts.tc1 > 0, "TIMESYNC requests are answered with the vehicle's clock"
         assert g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 20_000).result == M.MAV_RESULT_ACCEPTED
         t0 = time.monotonic()
         n = sum(g.recv("ATTITUDE", 1) is not None for _ in range(20))
