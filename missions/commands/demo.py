@@ -31,7 +31,9 @@ def register(app: typer.Typer) -> None:
         from sim.gridworld import GridConfig
 
         names = [p for p in DEFAULT_POLICIES if p in known_policies()]
-        for net in ("dualstream", "ssn", "drqn"):  # the learned ones whose checkpoint ships
+        # the shipped networks; the DRQN (84 x 84 frames, most episodes run to t_e) takes minutes
+        # on a CPU, so it is in results/table1_small.md and `uavsearch eval --policy drqn`
+        for net in ("dualstream", "ssn"):
             if net in known_policies() and shipped_checkpoint(f"{net}_static_random").exists():
                 names.append(net)
         run_eval(names, GridConfig(), episodes, seed, out)
