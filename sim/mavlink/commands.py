@@ -20,8 +20,9 @@ if TYPE_CHECKING:
 
 M = mavlink
 FORCE_MAGIC = 21196  # param 2 of ARM_DISARM: arm/disarm regardless of checks
-#: PX4 modes flown from RC sticks; no MANUAL_CONTROL is simulated, so they are refused
-STICK_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
+#: PX4 stick modes that command attitude or thrust: the FlightModel contract has no such
+#: interface, so they are refused. POSCTL (sticks command velocity) is flown, given sticks.
+ATTITUDE_MODES = frozenset({"MANUAL", "ALTCTL", "ACRO", "STABILIZED"})
 REQUESTABLE = frozenset(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
                                           M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE}
 RELATIVE_FRAMES = frozenset({M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
@@ -82,9 +83,12 @@ def do_set_mode(v: MavlinkVehicle, c: Command) -> Outcome:
     s = v.model.state
     if name is None:
         return M.MAV_RESULT_UNSUPPORTED
-    if name in STICK_MODES:
-        v.statustext(f"{name} needs manual control input, which this vehicle has not", M.MAV_SEVERITY_WARNING)
+    if name in ATTITUDE_MODES:
+        v.statustext(f"{name} not flown here: use POSCTL, AUTO or OFFBOARD", M.MAV_SEVERITY_WARNING)
         return M.MAV_RESULT_DENIED
+    if name == "POSCTL" and not v.manual_fresh():
+        v.statustext("POSCTL denied: no manual control input", M.MAV_SEVERITY_WARNING)
+        return M.MAV_RESULT_TEMPORARILY_REJECTED
     if name == "OFFBOARD" and not v.offboard_fresh():
         v.statustext("Offboard denied: stream setpoints first", M.MAV_SEVERITY_WARNING)
         return M.MAV_RESULT_TEMPORARILY_REJECTED

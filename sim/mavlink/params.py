@@ -29,6 +29,7 @@ def default_params() -> dict[str, Param]:
         "GF_MAX_HOR_DIST": Param(100.0, 1.0, 10000.0, "geofence: max horizontal distance from home (m)"),
         "GF_MAX_VER_DIST": Param(30.0, 1.0, 1000.0, "geofence: max altitude above home (m)"),
         "COM_OF_LOSS_T": Param(1.0, 0.1, 60.0, "offboard setpoint timeout (s)"),
+        "COM_RC_LOSS_T": Param(0.5, 0.1, 35.0, "manual control (MANUAL_CONTROL) timeout in POSCTL (s)"),
         "SYS_AUTOSTART": Param(4001.0, 0.0, 1e6, "airframe: generic quadrotor x"),
         "UAVS_CAM_RATE": Param(0.0, 0.0, 30.0, "camera frames streamed per second (0: on request)"),
         "UAVS_SIGNING": Param(0.0, 0.0, 1.0, "1: MAVLink2 signing required (read-only, set at start)", True),

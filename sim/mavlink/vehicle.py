@@ -23,7 +23,7 @@ from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsFix, GpsModel
 from sim.vehicle.model import FlightModel
 
-from .commands import RELATIVE_FRAMES, STICK_MODES, Command, execute
+from .commands import ATTITUDE_MODES, RELATIVE_FRAMES, Command, execute
 from .images import frame_messages
 from .mission import MissionItem, MissionProtocol, MissionStore
 from .modes import px4_mode_name
@@ -34,6 +34,7 @@ from .udp import UdpLink
 M = mavlink
 log = logging.getLogger(__name__)
 FENCE_LOOKAHEAD_S = 1.5  # how far ahead a velocity setpoint is checked against the fence
+STICK_DEADBAND = 0.05  # of full deflection; inside it POSCTL holds position
 #: SET_POSITION_TARGET_LOCAL_NED frames flown: positions absolute, or offsets from here
 LOCAL_FRAMES = frozenset({M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_LOCAL_OFFSET_NED, M.MAV_FRAME_BODY_OFFSET_NED,
                           M.MAV_FRAME_BODY_FRD})
@@ -93,6 +94,8 @@ class MavlinkVehicle:
         self.counters = VehicleCounters()
         self._target: np.ndarray | None = None  # NED hold/goto target (estimate frame)
         self._offboard_wall_t = -1e9  # when the last offboard setpoint arrived
+        self._manual_wall_t = -1e9  # when the last MANUAL_CONTROL arrived
+        self._sticks = np.zeros(4)  # forward, right, up, yaw rate: each in [-1, 1]
         self._velocity_control = False  # the model tracks a velocity, not a position
         self._fence_hold = False  # holding inside after a breach
         self._rtl_phase = 0
@@ -125,7 +128,7 @@ class MavlinkVehicle:
         if mode != self.mode:
             self.mode = mode
             self._rtl_phase = 0
-            if mode == "AUTO.LOITER":
+            if mode in ("AUTO.LOITER", "POSCTL"):
                 self._hold_here()
         if mode == "AUTO.LAND":
             self.model.land()
@@ -167,6 +170,9 @@ class MavlinkVehicle:
 
     def offboard_fresh(self) -> bool:
         return self.clock() - self._offboard_wall_t <= self.params["COM_OF_LOSS_T"]
+
+    def manual_fresh(self) -> bool:
+        return self.clock() - self._manual_wall_t <= self.params["COM_RC_LOSS_T"]
 
     def set_rate(self, msg_id: int, hz: float) -> None:
         self.rates[msg_id] = hz
@@ -225,6 +231,30 @@ class MavlinkVehicle:
         elif self.mode == "OFFBOARD" and not self.offboard_fresh():
             self.statustext("Offboard setpoints lost: holding position", M.MAV_SEVERITY_WARNING)
             self.set_mode("AUTO.LOITER")
+        elif self.mode == "POSCTL":
+            self._fly_sticks()
+
+    def _fly_sticks(self) -> None:
+        """PX4's position mode: sticks command horizontal velocity (body-aligned) and climb
+        rate; centred sticks hold position; losing the sticks holds (PX4's RC-loss hold)."""
+        if not self.manual_fresh():
+            self.statustext("Manual control lost: holding position", M.MAV_SEVERITY_WARNING)
+            self.set_mode("AUTO.LOITER")
+            return
+        fwd, right, up, _ = np.where(np.abs(self._sticks) < STICK_DEADBAND, 0.0, self._sticks)
+        if fwd == right == up == 0.0:  # brake, then hold where it stopped (as PX4 does)
+            if self._velocity_control and np.linalg.norm(self.model.state.velocity_ned) > 0.3:
+                self.model.set_velocity_target(np.zeros(3))
+            elif self._velocity_control or self._target is None:
+                self._hold_here()
+            return
+        yaw = float(self.model.state.attitude_rpy[2])
+        vmax = self.params["MPC_XY_VEL_MAX"]
+        vel = np.array([(fwd * math.cos(yaw) - right * math.sin(yaw)) * vmax,
+                        (fwd * math.sin(yaw) + right * math.cos(yaw)) * vmax,
+                        -up * self.params["MPC_Z_VEL_MAX_UP"]])
+        self._velocity_control = True
+        self.model.set_velocity_target(vel, yaw_rate=float(self._sticks[3]))
 
     def _fly_rtl(self) -> None:
         """Climb to RTL_RETURN_ALT (if lower), fly home, land: PX4's RTL without the loiter."""
@@ -396,10 +426,22 @@ class MavlinkVehicle:
                 self._pending_frames += 1
         elif kind == "TIMESYNC" and msg.tc1 == 0:  # a request: answer with our clock (simulated ns)
             self.send(self.mav.timesync_encode(max(int(self.t * 1e9), 1), msg.ts1))
+        elif kind == "MANUAL_CONTROL":
+            self._on_manual_control(msg)
         elif kind == "SET_MODE":  # deprecated: obeyed like DO_SET_MODE, without an ACK
             name = px4_mode_name((msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF)
-            if name is not None and name not in STICK_MODES and name != "OFFBOARD":
+            if name is not None and name not in ATTITUDE_MODES and name != "OFFBOARD" and (
+                    name != "POSCTL" or self.manual_fresh()):
                 self.set_mode(name)
+
+    def _on_manual_control(self, msg: mavlink.MAVLink_message) -> None:
+        """Sticks as QGroundControl's joystick sends them: x forward, y right, r yaw in
+        [-1000, 1000], z throttle in [0, 1000] with 500 centred."""
+        if msg.target not in (0, self.sysid):
+            return
+        sticks = np.array([msg.x, msg.y, msg.z - 500.0, msg.r], dtype=float) / np.array([1000, 1000, 500, 1000])
+        self._sticks = np.clip(sticks, -1.0, 1.0)
+        self._manual_wall_t = self.clock()
 
     def _on_command(self, msg: mavlink.MAVLink_message) -> None:
         self.counters.commands += 1

@@ -86,7 +86,8 @@ def test_command_acks_are_honest(sitl_factory) -> None:
         assert g.command(M.MAV_CMD_MISSION_START).result == M.MAV_RESULT_DENIED  # no mission
         assert g.command(M.MAV_CMD_DO_FLIGHTTERMINATION, 1).result == M.MAV_RESULT_UNSUPPORTED
         custom = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 3, 0).result == M.MAV_RESULT_DENIED, "POSCTL needs sticks"
+        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 3, 0).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "no sticks"
+        assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 2, 0).result == M.MAV_RESULT_DENIED, "ALTCTL not flown"
         assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 4, 2).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "takeoff, disarmed"
         assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 4, 5).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "RTL, on ground"
         assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 6, 0).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "no setpoints"
@@ -436,3 +437,35 @@ def _upload_rest(g: Gcs, items, first) -> int:
         if m.get_type() == "MISSION_ACK":
             return m.type
         g.c.mav.send(items[m.seq])
+
+
+def test_position_mode_flies_on_manual_control_and_holds_when_it_stops(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        time.sleep(0.5)
+
+        def sticks(x: int, y: int, z: int, seconds: float) -> None:
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                g.c.mav.manual_control_send(g.sysid, x, y, z, 0, 0)
+                time.sleep(0.05)
+
+        sticks(0, 0, 500, 0.2)
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 3, 0).result == M.MAV_RESULT_ACCEPTED
+        start = sitl.vehicle.estimate().copy()
+        sticks(1000, 0, 700, 0.4)  # full forward (north at yaw 0), some climb
+        moved = sitl.vehicle.estimate() - start
+        assert moved[0] > 1.0 and moved[2] < -0.2 and abs(moved[1]) < 0.5, moved
+        sticks(0, 0, 500, 0.5)  # centred: stop and hold
+        held = sitl.model.state.position_ned.copy()
+        sticks(0, 0, 500, 0.3)
+        assert np.linalg.norm(sitl.model.state.position_ned - held) < 0.2, "centred sticks hold position"
+        hb = g.recv("HEARTBEAT", 3, lambda h: (h.custom_mode >> 16) & 0xFF == 4)  # sticks gone: AUTO.LOITER
+        assert hb is not None and hb.custom_mode >> 24 == 3
+        assert any("Manual control lost" in t for t in g.texts + sitl.vehicle.counters.statustext)
+    finally:
+        g.close()
