@@ -1,9 +1,13 @@
 """The vehicle's telemetry messages, built from one snapshot of its state.
 
 What a PX4 vehicle streams and what MAVSDK and QGroundControl read before they call a vehicle
-healthy: HEARTBEAT (honest armed / custom-mode flags), SYS_STATUS (sensor present / enabled /
-healthy bits and the pre-arm check, which MAVSDK's health reads), GPS, position (the
+healthy: HEARTBEAT (honest armed / custom-mode flags), SYS_STATUS, GPS, position (the
 autopilot's estimate, not the truth), attitude, landed state, battery and home.
+
+MAVSDK's health (TelemetryImpl::process_sys_status) reads SYS_STATUS alone: gyro, accel and
+mag "calibrated" = present and healthy bits of 3D_GYRO / 3D_ACCEL / 3D_MAG; global (and so
+local) position ok = GPS present and healthy; armable = PREARM_CHECK healthy; home ok once a
+HOME_POSITION arrives. So GPS health and the pre-arm bit follow the GPS fix here.
 """
 
 from __future__ import annotations
