@@ -1,55 +1,72 @@
 """Policies by name, for the CLI and the evaluation harness. Entries are factories imported
-lazily, so listing names does not import torch."""
+lazily, so listing names (or importing this module) does not import torch; other packages add
+theirs with `register_policy`."""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
+from typing import Any
 
 from sim.gridworld import GridConfig
 
 from ..base import Policy
 
+#: factory(cfg=GridConfig | None, **kwargs) -> Policy
 Factory = Callable[..., Policy]
 _REGISTRY: dict[str, tuple[Factory, str]] = {}
 
 
 def register_policy(name: str, factory: Factory, description: str = "") -> None:
+    """Add (or replace) a named policy; the factory is only called by make_policy."""
+    if not isinstance(name, str) or not name.strip() or any(c.isspace() for c in name):
+        raise ValueError(f"policy names are non-empty words (got {name!r})")
+    if not callable(factory):
+        raise TypeError(f"factory for {name!r} must be callable (got {type(factory).__name__})")
     _REGISTRY[name] = (factory, description)
 
 
 def known_policies() -> dict[str, str]:
+    """name -> one-line description, sorted by name."""
     return {k: d for k, (_, d) in sorted(_REGISTRY.items())}
 
 
-def make_policy(name: str, cfg: GridConfig | None = None, **kwargs) -> Policy:
+def make_policy(name: str, cfg: GridConfig | None = None, **kwargs: Any) -> Policy:
+    """A fresh policy by name. kwargs go to the factory: `checkpoint` for the networks,
+    `loop_guard` (True/False; None = the paper's choice) for every policy without truth."""
     if name not in _REGISTRY:
         raise KeyError(f"unknown policy {name!r}; known: {', '.join(sorted(_REGISTRY))}")
     return _REGISTRY[name][0](cfg=cfg, **kwargs)
 
 
-def _oracle(cfg=None, **_):
-    from ..groundtruth import PlanPolicy
+def _plans(method: str) -> Factory:
+    def make(cfg: GridConfig | None = None, loop_guard: bool | None = None, **_: Any) -> Policy:
+        if loop_guard:
+            raise ValueError("the plan policies replay optimal plans; loop detection does not apply")
+        from ..groundtruth import PlanPolicy
 
-    return PlanPolicy("pt")
+        return PlanPolicy(method)
+
+    return make
 
 
-def _cu(cfg=None, **_):
-    from ..groundtruth import PlanPolicy
+def _simple(module: str, cls_name: str) -> Factory:
+    """A non-learned policy; the paper runs none of them under loop detection (NS's loop
+    columns are '-'), so loop_guard defaults to off."""
 
-    return PlanPolicy("cu")
+    def make(cfg: GridConfig | None = None, loop_guard: bool | None = None, **_: Any) -> Policy:
+        policy: Policy = getattr(importlib.import_module(f"{__package__}.{module}"), cls_name)()
+        if loop_guard:
+            from ..loops import LoopGuard
 
-
-def _simple(cls_name: str) -> Factory:
-    def make(cfg=None, **_):
-        from . import simple
-
-        return getattr(simple, cls_name)()
+            return LoopGuard(policy)
+        return policy
 
     return make
 
 
 def _network(default: str) -> Factory:
-    def make(cfg=None, checkpoint=None, **kw):
+    def make(cfg: GridConfig | None = None, checkpoint: Any = None, **kw: Any) -> Policy:
         from ..nn import load_policy, shipped_checkpoint
 
         return load_policy(checkpoint or shipped_checkpoint(default), cfg=cfg, **kw)
@@ -57,19 +74,22 @@ def _network(default: str) -> Factory:
     return make
 
 
-register_policy("oracle", _oracle, "optimal PT with full knowledge of the targets (upper bound)")
-register_policy("cu", _cu, "closest unvisited target, with full knowledge (Eq. 2-3)")
-register_policy("ns", _simple("NaivePolicy"), "naive solution: visible target, else vote (paper V-D)")
-register_policy("frontier", _simple("FrontierPolicy"), "greedy: nearest unvisited cell")
-register_policy("lawnmower", _simple("LawnmowerPolicy"), "boustrophedon sweep from the nearest corner")
-register_policy("random", _simple("RandomPolicy"), "uniformly random valid moves")
-def _drqn(cfg=None, checkpoint=None, **_):
+def _drqn(cfg: GridConfig | None = None, checkpoint: Any = None, **_: Any) -> Policy:
     from ..drqn import DrqnPolicy
     from ..nn import shipped_checkpoint
 
     return DrqnPolicy.load(checkpoint or shipped_checkpoint("drqn_static_random"))
 
 
+register_policy("oracle", _plans("pt"), "optimal PT with full knowledge of the targets (upper bound)")
+register_policy("cu", _plans("cu"), "closest unvisited target, with full knowledge (Eq. 2-3)")
+register_policy("ns", _simple("ns", "NaivePolicy"), "naive solution: visible target, else vote (paper V-D)")
+register_policy("frontier", _simple("frontier", "FrontierPolicy"), "greedy: nearest unvisited cell")
+register_policy("lawnmower", _simple("lawnmower", "LawnmowerPolicy"),
+                "boustrophedon sweep from the nearest corner")
+register_policy("random", _simple("random_policy", "RandomPolicy"), "uniformly random valid moves")
 register_policy("drqn", _drqn, "DRQN baseline trained by reward (shipped checkpoint or --checkpoint)")
-register_policy("dualstream", _network("dualstream_static_random"), "the dual-stream network (shipped checkpoint or --checkpoint)")
-register_policy("ssn", _network("ssn_static_random"), "split-stream baseline network (shipped checkpoint or --checkpoint)")
+register_policy("dualstream", _network("dualstream_static_random"),
+                "the dual-stream network (shipped checkpoint or --checkpoint)")
+register_policy("ssn", _network("ssn_static_random"),
+                "split-stream baseline network (shipped checkpoint or --checkpoint)")

@@ -84,3 +84,116 @@ def test_queue_is_cleared_after_landing_on_an_unvisited_cell() -> None:
 def test_bad_parameters() -> None:
     with pytest.raises(ValueError):
         LoopGuard(_Pendulum(), alpha=1)
+
+
+def _ring(x0: int, y0: int, w: int, h: int) -> list[tuple[int, int]]:
+    """The perimeter cells of a w x h rectangle, clockwise from its top-left corner."""
+    top = [(x0 + i, y0) for i in range(w)]
+    right = [(x0 + w - 1, y0 + j) for j in range(1, h)]
+    bottom = [(x0 + i, y0 + h - 1) for i in range(w - 2, -1, -1)]
+    left = [(x0, y0 + j) for j in range(h - 2, 0, -1)]
+    return top + right + bottom + left
+
+
+class _RingWalker(Policy):
+    """Walks a closed ring of cells forever: a loop of known length."""
+
+    name = "ring"
+
+    def __init__(self, ring: list[tuple[int, int]]) -> None:
+        self.ring = ring
+
+    def reset(self, cfg, n, seed, episodes=None):
+        pass
+
+    def act(self, obs: Observation) -> np.ndarray:
+        x, y = (int(v) for v in obs.positions[0])
+        nx, ny = self.ring[(self.ring.index((x, y)) + 1) % len(self.ring)]
+        return np.array([{(0, -1): Action.F, (0, 1): Action.B, (-1, 0): Action.L, (1, 0): Action.R}[(nx - x, ny - y)]])
+
+
+def _first_trigger(ring: list[tuple[int, int]], window: int, moves: int = 200) -> int | None:
+    """Moves made when the guard first declares a loop (None if it never does)."""
+    from policy.base import observe
+
+    cfg = GridConfig(width=10, height=10, n_targets=1)
+    ep = type(sample_episodes(cfg, 1, 0))(cfg, np.array([ring[0]]), np.array([[[9, 9]]]), None, 0)
+    world, guard = BatchGridWorld(ep, 0), LoopGuard(_RingWalker(ring), window=window)
+    guard.reset(cfg, 1, 0)
+    for _ in range(moves):
+        obs = observe(world)
+        world.step(guard.act(obs))
+        if guard.loops()[0]:
+            return int(obs.t[0])
+    return None
+
+
+def test_a_loop_counts_only_when_the_third_visit_is_within_the_window() -> None:
+    short, long_ = _ring(1, 1, 5, 6), _ring(1, 1, 6, 6)  # 18 and 20 cells
+    assert len(short) == 18 and len(long_) == 20
+    # 18-cycle: the start cell's third visit is position 36, 37 positions <= 40 queued
+    assert _first_trigger(short, window=40) == 36
+    # 20-cycle: a third visit lies 40 moves after the first, outside the last 40 positions
+    assert _first_trigger(long_, window=40) is None
+    assert _first_trigger(long_, window=41) == 40
+
+
+def test_only_the_first_radius_with_an_unvisited_cell_votes() -> None:
+    visited = np.ones((1, 10, 10), dtype=bool)
+    visited[0, 5, 6] = False  # one cell right at radius 1
+    visited[0, 3:8, 2:4] = False  # ten cells left at radius 2-3: never consulted
+    assert vote(np.array([[5, 5]]), visited, np.random.default_rng(0))[0] == Action.R
+    visited[0, 5, 6] = True  # now radius 1 is empty: the left block wins at radius 2
+    assert vote(np.array([[5, 5]]), visited, np.random.default_rng(0))[0] == Action.L
+
+
+def _reference_votes(pos: np.ndarray, visited: np.ndarray) -> np.ndarray:
+    """The fallback's votes (f, b, l, r) for one agent, written the slow and obvious way."""
+    h, w = visited.shape
+    for r in range(1, max(h, w) + 1):
+        votes = np.zeros(4, dtype=int)
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                x, y = pos[0] + dx, pos[1] + dy
+                if not (0 <= x < w and 0 <= y < h) or visited[y, x]:
+                    continue
+                if abs(dy) >= abs(dx):
+                    votes[0 if dy < 0 else 1] += 1
+                if abs(dx) >= abs(dy):
+                    votes[2 if dx < 0 else 3] += 1
+        if votes.any():
+            return votes
+    return votes
+
+
+def test_batched_vote_agrees_with_a_per_agent_reference() -> None:
+    rng = np.random.default_rng(7)
+    n = 300
+    visited = rng.random((n, 8, 9)) < rng.uniform(0.5, 1.0, size=(n, 1, 1))
+    pos = np.stack([rng.integers(0, 9, n), rng.integers(0, 8, n)], axis=1)
+    visited[np.arange(n), pos[:, 1], pos[:, 0]] = True
+    got = vote(pos, visited, np.random.default_rng(1))
+    for i in range(n):
+        ref = _reference_votes(pos[i], visited[i])
+        if not ref.any():
+            assert got[i] == Action.N
+        else:
+            assert ref[got[i]] == ref.max(), f"agent {i}: chose {got[i]} with votes {ref}"
+
+
+def test_every_trigger_counts_one_loop_and_the_guard_sees_what_m_shows() -> None:
+    from policy.base import observe
+
+    cfg = GridConfig(n_targets=1)
+    ep = type(sample_episodes(cfg, 1, 0))(cfg, np.array([[0, 0]]), np.array([[[9, 9]]]), None, 0)
+    world, guard = BatchGridWorld(ep, 0), LoopGuard(_Pendulum())
+    guard.reset(cfg, 1, 0)
+    entries = 0
+    while not world.done.all():
+        before = bool(guard.fallback[0])
+        obs = observe(world)
+        world.step(guard.act(obs))
+        entries += int(guard.fallback[0] and not before)
+        # the guard's own visited mask is M's visited cells (> 0) before this move
+        assert (guard.visited[0] == (obs.maps[0, 0] > 0)).all()
+    assert guard.loops()[0] == entries >= 10  # the pendulum loops again after every break
