@@ -16,14 +16,18 @@ def register(app: typer.Typer) -> None:
     def eval_(
         policy: list[str] = typer.Option(["ns"], "--policy", "-p", help="Policy name; repeat for several."),
         episodes: int = typer.Option(1000, "--episodes", min=1),
-        seed: int = typer.Option(0, "--seed"),
+        seed: int = typer.Option(0, "--seed", help="Seed of the test episodes (same for every policy)."),
         distribution: Dist = DIST,
         motion: Motion = MOTION,
         map_kind: MapKind = MAP,
         width: int = WIDTH,
         height: int = HEIGHT,
         targets: int = TARGETS,
-        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Network checkpoint for dualstream/ssn."),
+        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Checkpoint for dualstream/ssn/drqn."),
+        loop_guard: bool | None = typer.Option(
+            None, "--loop-guard/--no-loop-guard",
+            help="Force loop detection on/off (default: the paper's choice, networks on static targets).",
+        ),
         out: Path | None = typer.Option(None, "--out", help="Write results.json, table.md and plots here."),
         as_json: bool = typer.Option(False, "--json", help="Print only the JSON document on stdout."),
     ) -> None:
@@ -37,9 +41,16 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(
                 f"unknown policy {', '.join(unknown)}; known: {', '.join(known)}", param_hint="--policy"
             )
+        if out is not None and out.exists() and not out.is_dir():
+            raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+        if checkpoint is not None and not checkpoint.is_file():
+            raise typer.BadParameter(f"no checkpoint file at {checkpoint}", param_hint="--checkpoint")
         cfg = grid_config(distribution, motion, map_kind, width, height, targets)
-        doc = run_eval(policy, cfg, episodes, seed, out, progress=not as_json, checkpoint=checkpoint,
-                       echo=not as_json)
+        try:
+            doc = run_eval(policy, cfg, episodes, seed, out, progress=not as_json, checkpoint=checkpoint,
+                           echo=not as_json, loop_guard=loop_guard)
+        except ValueError as e:  # e.g. a checkpoint trained for another map or action set
+            raise typer.BadParameter(str(e)) from e
         if as_json:
             json.dump(doc, sys.stdout, indent=2, default=float)
             sys.stdout.write("\n")

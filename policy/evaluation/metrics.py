@@ -30,8 +30,17 @@ def table1_columns(
     """Every Table I column (a)-(g) plus the plain numbers a user reads at once."""
     moves = np.asarray(moves, dtype=np.int64)
     optimal = np.asarray(optimal, dtype=np.int64)
+    find_moves = np.asarray(find_moves, dtype=np.int64)
     if moves.shape != optimal.shape or moves.ndim != 1 or len(moves) == 0:
         raise ValueError("moves and optimal must be equal-length 1-D arrays with >= 1 episode")
+    if find_moves.ndim != 2 or len(find_moves) != len(moves):
+        raise ValueError(f"find_moves must be (episodes, targets); got {find_moves.shape} for {len(moves)} episodes")
+    if loops is not None:
+        loops = np.asarray(loops, dtype=np.int64)
+        if loops.shape != moves.shape:
+            raise ValueError(f"loops must be one count per episode; got {loops.shape} for {len(moves)} episodes")
+    if (optimal < 1).any():
+        raise ValueError("optimal lengths must be >= 1 (the agent never starts on a target)")
     n = len(moves)
     pct = lambda x: float(100.0 * np.count_nonzero(x) / n)  # noqa: E731
     diff = moves - optimal
@@ -51,11 +60,12 @@ def table1_columns(
         "mean_moves": float(moves.mean()),
         "sd_moves": float(moves.std()),
         "mean_optimal_moves": float(optimal.mean()),
-        "mean_ratio_to_optimal": float((moves / np.maximum(optimal, 1)).mean()),
+        "mean_ratio_to_optimal": float((moves / optimal).mean()),
         "success_pct": pct(found == find_moves.shape[1]),
         "targets_per_move": float(found.sum() / moves.sum()),
     }
     if loops is not None:
+        # (b) over the looping episodes only; 0 (not undefined) when none looped
         looped = loops > 0
         out["loop_pct"] = pct(looped)
         out["multi_loop_pct"] = (

@@ -6,6 +6,7 @@ episodes, so results are paired and the ratio to the oracle is meaningful per ep
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,13 +28,18 @@ class EvalResult:
     optimal: np.ndarray
     find_moves: np.ndarray
     loops: np.ndarray | None
+    #: off-map choices the world replaced by a random valid move, per episode
+    replaced: np.ndarray | None = None
     #: a few episodes kept for plots: start cells, targets at t = 0 and trajectories
     sample_paths: list[np.ndarray] = field(default_factory=list)
     sample_targets: list[np.ndarray] = field(default_factory=list)
 
     @property
     def columns(self) -> dict[str, float | None]:
-        return table1_columns(self.moves, self.optimal, self.find_moves, self.loops, self.cfg.t_e)
+        cols = table1_columns(self.moves, self.optimal, self.find_moves, self.loops, self.cfg.t_e)
+        if self.replaced is not None:
+            cols["offmap_replaced_mean"] = float(self.replaced.mean())
+        return cols
 
 
 def evaluate(
@@ -44,14 +50,21 @@ def evaluate(
     batch: int = 5000,
     keep_paths: int = 12,
     progress: bool = True,
-    view_fn=None,
+    view_fn: Callable[[BatchGridWorld], np.ndarray] | None = None,
 ) -> EvalResult:
-    """Evaluate in batches of `batch` episodes; episode i is the same for every policy."""
+    """Evaluate in batches of `batch` episodes; episode i is the same for every policy.
+    Batch b's policy and world streams are seeded with seed + its first episode's index.
+    view_fn replaces the 3 x 3 view I (e.g. rendered camera frames for +S)."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1 (got {episodes})")
+    if batch < 1:
+        raise ValueError(f"batch must be >= 1 (got {batch})")
     ep_all = sample_episodes(cfg, episodes, seed)
     optimal = optimal_lengths(ep_all)
-    moves, finds, loops = [], [], []
+    moves: list[np.ndarray] = []
+    finds: list[np.ndarray] = []
+    loops: list[np.ndarray | None] = []
+    replaced: list[np.ndarray] = []
     paths: list[np.ndarray] = []
     targets: list[np.ndarray] = []
     bar = tqdm(total=episodes, desc=f"eval {policy.name}", unit="ep", disable=not progress, leave=False)
@@ -65,8 +78,8 @@ def evaluate(
             world.step(policy.act(obs))
         moves.append(world.t.copy())
         finds.append(world.find_moves.copy())
-        lp = policy.loops()
-        loops.append(lp if lp is not None else None)
+        replaced.append(world.replaced.copy())
+        loops.append(policy.loops())
         if len(paths) < keep_paths:
             traj = world.trajectories()
             for i in range(min(n, keep_paths - len(paths))):
@@ -81,7 +94,8 @@ def evaluate(
         moves=np.concatenate(moves),
         optimal=optimal,
         find_moves=np.concatenate(finds),
-        loops=None if any(x is None for x in loops) else np.concatenate(loops),
+        loops=None if any(x is None for x in loops) else np.concatenate(loops),  # type: ignore[arg-type]
+        replaced=np.concatenate(replaced),
         sample_paths=paths,
         sample_targets=targets,
     )

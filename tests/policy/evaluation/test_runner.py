@@ -1,33 +1,57 @@
-import json
-from pathlib import Path
+import numpy as np
+import pytest
 
 from policy.baselines import make_policy
-from policy.evaluation import evaluate, run_eval
-from sim.gridworld import GridConfig
+from policy.evaluation import evaluate
+from policy.groundtruth import optimal_lengths
+from sim.gridworld import GridConfig, sample_episodes
 
 
 def test_oracle_is_optimal_on_every_setting() -> None:
     for kw in ({}, {"motion": "herd", "distribution": "equidistant", "map_variant": "spatiotemporal"}):
         cfg = GridConfig(**kw)
         r = evaluate(make_policy("oracle", cfg), cfg, 300, seed=1, batch=128, progress=False)
+        assert (r.moves == r.optimal).all()
         assert r.columns["optimal_pct"] == 100.0 and r.columns["success_pct"] == 100.0
 
 
-def test_same_seed_same_result_and_batching_does_not_matter() -> None:
+def test_same_seed_same_result_and_every_policy_meets_the_same_episodes() -> None:
     cfg = GridConfig()
-    a = evaluate(make_policy("ns", cfg), cfg, 200, seed=3, batch=200, progress=False)
-    b = evaluate(make_policy("ns", cfg), cfg, 200, seed=3, batch=200, progress=False)
-    assert (a.moves == b.moves).all()
-    c = evaluate(make_policy("oracle", cfg), cfg, 200, seed=3, batch=64, progress=False)
-    assert (c.optimal == a.optimal).all(), "every policy meets the same episodes"
+    a = evaluate(make_policy("ns", cfg), cfg, 200, seed=3, batch=64, progress=False)
+    b = evaluate(make_policy("ns", cfg), cfg, 200, seed=3, batch=64, progress=False)
+    assert (a.moves == b.moves).all() and (a.find_moves == b.find_moves).all()
+    c = evaluate(make_policy("oracle", cfg), cfg, 200, seed=3, batch=200, progress=False)
+    assert (c.optimal == a.optimal).all()
+    assert (a.optimal == optimal_lengths(sample_episodes(cfg, 200, 3))).all()
+    d = evaluate(make_policy("ns", cfg), cfg, 200, seed=4, batch=64, progress=False)
+    assert not (d.optimal == a.optimal).all(), "another seed, other episodes"
 
 
-def test_report_files(tmp_path: Path) -> None:
-    doc = run_eval(["oracle", "ns"], GridConfig(), 100, 2, out=tmp_path, progress=False, echo=False)
-    saved = json.loads((tmp_path / "results.json").read_text())
-    assert saved["policies"]["ns"]["over_100_pct"] == doc["policies"]["ns"]["over_100_pct"]
-    assert saved["git_revision"] and saved["seed"] == 2 and saved["config"]["n_targets"] == 5
-    md = (tmp_path / "table.md").read_text()
-    assert "| ns | paper |" in md and "(g) recovery rate" in md
-    for f in ("fig4_difference.png", "paths_ns.png", "paths_oracle.png"):
-        assert (tmp_path / f).read_bytes()[:4] == b"\x89PNG"
+def test_collected_arrays_and_example_paths_are_consistent() -> None:
+    cfg = GridConfig()
+    r = evaluate(make_policy("ns", cfg), cfg, 120, seed=6, batch=50, keep_paths=5, progress=False)
+    assert r.moves.shape == r.optimal.shape == (120,) and r.find_moves.shape == (120, 5)
+    assert r.loops is None and (r.replaced == 0).all()
+    # an episode ends at its last find (all found) or at t_e + 1
+    assert (np.where(r.moves <= cfg.t_e, r.moves == r.find_moves.max(axis=1), True)).all()
+    ep = sample_episodes(cfg, 5, 6)
+    assert len(r.sample_paths) == 5
+    for i, (path, tg) in enumerate(zip(r.sample_paths, r.sample_targets, strict=True)):
+        assert len(path) == r.moves[i] + 1 and tuple(path[0]) == tuple(ep.agent[i])
+        assert (np.abs(np.diff(path, axis=0)).sum(axis=1) == 1).all()
+        assert {tuple(t) for t in tg} <= {tuple(p) for p in path}
+
+
+def test_loop_counts_come_through_from_a_guarded_policy() -> None:
+    cfg = GridConfig()
+    r = evaluate(make_policy("random", cfg, loop_guard=True), cfg, 100, seed=2, batch=40, progress=False)
+    assert r.loops is not None and r.loops.shape == (100,) and (r.loops > 0).all()
+    assert r.columns["loop_pct"] == 100.0
+
+
+def test_bad_arguments() -> None:
+    cfg = GridConfig()
+    with pytest.raises(ValueError, match="episodes"):
+        evaluate(make_policy("ns", cfg), cfg, 0, seed=1)
+    with pytest.raises(ValueError, match="batch"):
+        evaluate(make_policy("ns", cfg), cfg, 10, seed=1, batch=0)
