@@ -58,6 +58,15 @@ def vote(pos: np.ndarray, visited: np.ndarray, rng: np.random.Generator) -> np.n
 
 
 class LoopGuard(Policy):
+    """Any policy under loop detection: `LoopGuard(policy)` is itself a Policy, `loops()` gives
+    the triggers per episode. Optional by construction: the paper wraps its networks for static
+    targets and runs moving targets unwrapped (Section VI-F).
+
+    The visited mask is kept here from positions rather than read from M: for the static maps it
+    equals M's cells > 0 (tested), and the spatiotemporal trail forgets cells after 50 moves.
+    The wrapped policy is asked every step, in the fallback too, so stateful policies (an LSTM,
+    a plan) keep their state in step with the world."""
+
     def __init__(self, policy: Policy, alpha: int = 3, window: int = 40) -> None:
         if alpha < 2 or window < alpha:
             raise ValueError(f"need 2 <= alpha <= window (got alpha={alpha}, window={window})")
