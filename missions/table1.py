@@ -164,7 +164,7 @@ def run_table1(scale: str, out: Path, seed: int = 0, only: list[str] | None = No
 
 def render_markdown(doc: dict[str, Any], scale: str) -> str:
     from policy.evaluation.paper import PAPER_TABLE1
-    from policy.evaluation.report import TABLE_COLUMNS, _fmt
+    from policy.evaluation.report import TABLE_COLUMNS, format_cell
 
     sc = doc["config"]["scale"]
     head = "| row | source | " + " | ".join(h for _, h, _ in TABLE_COLUMNS) + " |"
@@ -183,10 +183,10 @@ def render_markdown(doc: dict[str, Any], scale: str) -> str:
         if "not_yet" in row:
             lines.append(f"| {name} | ours | not yet: {row['not_yet']} |" + " |" * (len(TABLE_COLUMNS) - 1))
         else:
-            lines.append(f"| {name} | ours | " + " | ".join(_fmt(row, k, f) for k, _, f in TABLE_COLUMNS) + " |")
+            lines.append(f"| {name} | ours | " + " | ".join(format_cell(row, k, f) for k, _, f in TABLE_COLUMNS) + " |")
         p = PAPER_TABLE1.get(name)
         if p:
-            lines.append(f"| {name} | paper | " + " | ".join(_fmt(p, k, f) for k, _, f in TABLE_COLUMNS) + " |")
+            lines.append(f"| {name} | paper | " + " | ".join(format_cell(p, k, f) for k, _, f in TABLE_COLUMNS) + " |")
     lines += ["", "Columns as defined in docs/metrics.md; (h) is held-out accuracy over the folds run.", ""]
     return "\n".join(lines)
 
