@@ -126,3 +126,12 @@ def test_bad_config() -> None:
         TrainConfig(optimizer="rmsprop")
     with pytest.raises(ValueError, match="DDP"):
         TrainConfig(batch=63, ddp=2)
+
+
+def test_ray_address_without_ray_is_a_clear_error(dataset: Path, tmp_path: Path) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("ray") is not None:
+        pytest.skip("ray is installed here; this checks the message for machines without it")
+    with pytest.raises(RuntimeError, match="needs ray"):
+        train(dataset, tmp_path, TrainConfig(epochs=1, folds=2), progress=False, ray_address="127.0.0.1:6379")
