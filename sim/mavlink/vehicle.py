@@ -32,6 +32,8 @@ from .telemetry import BUILDERS, DEFAULT_RATES, Snapshot
 from .udp import UdpLink
 
 M = mavlink
+#: telemetry streams run at most this many times their rate in wall-clock time
+MAX_STREAM_SPEEDUP = 50.0
 log = logging.getLogger(__name__)
 FENCE_LOOKAHEAD_S = 1.5  # how far ahead a velocity setpoint is checked against the fence
 STICK_DEADBAND = 0.05  # of full deflection; inside it POSCTL holds position
@@ -83,6 +85,7 @@ class MavlinkVehicle:
         self.model, self.links, self.home, self.gps, self.camera = model, links, home, gps, camera
         self.sysid = system_id
         self.clock = clock  # wall clock, for timers that wait on a client
+        self._next_wall: dict[int, float] = {}
         self.params = ParamStore(signing=signing)
         self.mission = MissionStore()
         self.missions = MissionProtocol(self, self.mission, clock)
@@ -359,10 +362,16 @@ class MavlinkVehicle:
 
     # -- telemetry -----------------------------------------------------------------------
     def _stream(self) -> None:
+        now = self.clock()
         for msg_id, hz in self.rates.items():
             if hz <= 0 or self.t + 1e-9 < self._next_due.get(msg_id, 0.0):
                 continue
+            # due in simulated time; but never more than MAX_STREAM_SPEEDUP x the rate in wall time,
+            # so a simulation racing ahead (speedup 0) cannot flood a client's receive buffer
+            if now < self._next_wall.get(msg_id, 0.0):
+                continue
             self._next_due[msg_id] = self.t + 1.0 / hz
+            self._next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
             self.send_message(msg_id)
         if self._pending_frames or (self.params["UAVS_CAM_RATE"] > 0 and self.t >= self._next_frame_t):
             self._send_frame()
