@@ -39,10 +39,16 @@ class Gcs:
                 return m
         return None
 
-    def command(self, cmd: int, *params: float, timeout: float = 3.0):
+    def command(self, cmd: int, *params: float, timeout: float = 3.0, tries: int = 3):
+        """COMMAND_LONG, resent with confirmation+1 when no ACK comes, as QGC and MAVSDK do
+        (UDP may drop a datagram on a loaded machine); the vehicle must answer each one."""
         p = list(params) + [0.0] * (7 - len(params))
-        self.c.mav.command_long_send(self.sysid, 1, cmd, 0, *p)
-        return self.recv("COMMAND_ACK", timeout, lambda a: a.command == cmd)
+        for confirmation in range(tries):
+            self.c.mav.command_long_send(self.sysid, 1, cmd, confirmation, *p)
+            ack = self.recv("COMMAND_ACK", timeout / tries, lambda a: a.command == cmd)
+            if ack is not None:
+                return ack
+        return None
 
     def close(self) -> None:
         self.c.close()
