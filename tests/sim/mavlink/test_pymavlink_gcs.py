@@ -6,6 +6,7 @@ import math
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -421,10 +422,23 @@ def test_client_timers_run_on_wall_clock_when_the_simulation_races(sitl_factory)
         assert _upload_rest(g, items, first) == M.MAV_MISSION_ACCEPTED
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
         hold = 0b0000_1101_1111_1000  # position only
-        g.c.mav.set_position_target_local_ned_send(0, g.sysid, 1, M.MAV_FRAME_LOCAL_NED, hold, 0, 0, -2.0,
-                                                   0, 0, 0, 0, 0, 0, 0, 0)
-        time.sleep(0.2)  # many simulated seconds, well within COM_OF_LOSS_T of wall-clock time
-        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0).result == M.MAV_RESULT_ACCEPTED
+        stop = threading.Event()
+
+        def stream() -> None:  # a client's setpoint stream at 5 Hz of wall-clock time
+            while not stop.is_set():
+                g.c.mav.set_position_target_local_ned_send(0, g.sysid, 1, M.MAV_FRAME_LOCAL_NED, hold, 0, 0, -2.0,
+                                                           0, 0, 0, 0, 0, 0, 0, 0)
+                time.sleep(0.2)  # many simulated seconds, well within COM_OF_LOSS_T of wall-clock time
+
+        streamer = threading.Thread(target=stream, daemon=True)
+        streamer.start()
+        time.sleep(0.3)
+        try:
+            ack = g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0)
+        finally:
+            stop.set()
+            streamer.join()
+        assert ack.result == M.MAV_RESULT_ACCEPTED
     finally:
         g.close()
 
