@@ -43,10 +43,14 @@ class Drqn(nn.Module):
         self.advantage = nn.Linear(hidden, n_actions)
         self.hidden = hidden
 
-    def forward(self, frames: torch.Tensor, state=None):
-        """frames (B, T, 3, H, W) uint8 -> Q (B, T, A), new LSTM state."""
-        b, t = frames.shape[:2]
-        z = self.conv(frames.reshape(b * t, *frames.shape[2:]).float() / 255.0).reshape(b, t, -1)
+    def forward(self, frames: torch.Tensor, state=None, index: torch.Tensor | None = None):
+        """frames (B, T, 3, H, W) uint8 -> Q (B, T, A), new LSTM state. With `index` (B, T),
+        `frames` holds only the distinct images (U, 3, H, W) and index says which one each step
+        shows: the same function and gradients, with the convolutions run once per image."""
+        if index is None:
+            b, t = frames.shape[:2]
+            frames, index = frames.reshape(b * t, *frames.shape[2:]), torch.arange(b * t).reshape(b, t)
+        z = self.conv(frames.float() / 255.0)[index]
         out, state = self.lstm(z, state)
         adv = self.advantage(out)
         return self.value(out) + adv - adv.mean(dim=-1, keepdim=True), state

@@ -7,6 +7,7 @@ import torch
 from policy.drqn import (
     Drqn,
     DrqnConfig,
+    DrqnLearner,
     DrqnPolicy,
     EpisodeReplay,
     drqn_view,
@@ -85,3 +86,45 @@ def test_shipped_checkpoint_plays_in_the_harness() -> None:
     cfg = GridConfig()
     r = evaluate(make_policy("drqn", cfg), cfg, 4, seed=3, progress=False)
     assert r.moves.shape == (4,) and (r.moves >= r.optimal).all()
+
+
+def test_cut_episodes_are_not_terminal() -> None:
+    rb = EpisodeReplay(2, np.random.default_rng(0))
+    z = np.zeros((4, 3, 3, 3), np.uint8)
+    rb.add(z, np.zeros((4, 3, 3), bool), np.zeros(4, int), np.zeros(4), terminal=False)
+    _, _, _, _, d, m = rb.sample(1, 8)
+    assert d.sum() == 0, "a cap is not an end state: no done flag"
+    assert m[0].tolist() == [1, 1, 1, 0, 0, 0, 0, 0], "its last step has no successor frame: left out"
+    rb.episodes.clear()
+    rb.add(z, np.zeros((4, 3, 3), bool), np.zeros(4, int), np.zeros(4), terminal=True)
+    _, _, _, _, d, m = rb.sample(1, 8)
+    assert d[0, 3] == 1 and m[0, :4].all(), "found-everything ends the episode"
+
+
+def test_distinct_frames_give_the_same_q_values() -> None:
+    torch.manual_seed(0)
+    net = Drqn(4, 84).eval()
+    rng = np.random.default_rng(1)
+    views = (rng.random((2, 6, 3, 3, 3)) < 0.2).astype(np.uint8)
+    views[:, 3:] = views[:, :3]  # repeats, as in a real replay batch
+    found = np.zeros((2, 6, 3, 3), bool)
+    full = torch.from_numpy(drqn_view(views.reshape(-1, 3, 3, 3), found.reshape(-1, 3, 3))).reshape(2, 6, 3, 84, 84)
+    learner = DrqnLearner(DrqnConfig(), GridConfig(), 0)
+    fr, idx = learner.frames(views, found)
+    assert len(fr) < 12
+    with torch.no_grad():
+        assert torch.equal(net(full)[0], net(fr, index=idx)[0])
+
+
+def test_resume_gives_the_same_weights(tmp_path: Path) -> None:
+    grid = GridConfig(width=5, height=5, n_targets=2)
+    cfg = DrqnConfig(image=42, episodes=32, envs=8, warmup_steps=100, eps_anneal_steps=200, train_max_steps=30,
+                     save_every=8)
+    straight, _ = load_drqn(train_drqn(cfg, grid, tmp_path / "a", seed=4, progress=False))
+    train_drqn(DrqnConfig(**{**cfg.__dict__, "episodes": 16}), grid, tmp_path / "b", seed=4, progress=False)
+    resumed, doc = load_drqn(train_drqn(cfg, grid, tmp_path / "b", seed=4, progress=False, resume=True))
+    assert doc["created_utc"] and doc["git_revision"]
+    for k, v in straight.state_dict().items():
+        assert torch.equal(v, resumed.state_dict()[k]), k
+    with pytest.raises(CheckpointError, match="another run"):
+        train_drqn(cfg, grid, tmp_path / "b", seed=5, progress=False, resume=True)
