@@ -1,4 +1,5 @@
-"""`uavsearch train`: fit the dual-stream network (or SSN) on a dataset with k-fold CV."""
+"""`uavsearch train`: fit the dual-stream network (or SSN) on a dataset with k-fold CV, or the DRQN
+baseline by reward in the grid world (no dataset)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,13 @@ from pathlib import Path
 
 import typer
 
+from .options import DIST, HEIGHT, MAP, MOTION, TARGETS, WIDTH, Dist, MapKind, Motion, grid_config
+
 
 class Model(StrEnum):
     dualstream = "dualstream"
     ssn = "ssn"
+    drqn = "drqn"
 
 
 class Arch(StrEnum):
@@ -32,7 +36,8 @@ class Device(StrEnum):
 def register(app: typer.Typer) -> None:
     @app.command()
     def train(
-        dataset: Path = typer.Option(..., "--dataset", help="Directory written by `uavsearch synth`."),
+        dataset: Path | None = typer.Option(None, "--dataset",
+                                            help="Directory written by `uavsearch synth` (not for drqn)."),
         out: Path = typer.Option(..., "--out", help="Run directory (checkpoints, metrics, plots)."),
         model: Model = typer.Option(Model.dualstream, "--model"),
         arch: Arch = typer.Option(Arch.small, "--arch", help="small (default) or the paper's layer sizes."),
@@ -51,8 +56,23 @@ def register(app: typer.Typer) -> None:
         ray_address: str | None = typer.Option(None, "--ray-address",
                                                help="Send folds to this ray cluster (dataset on a shared path)."),
         ddp: int = typer.Option(0, "--ddp", min=0, help="DDP processes (GPUs) per fold; 0: off."),
+        episodes: int = typer.Option(20_000, "--episodes", min=1, help="drqn: training episodes (the paper's 20k)."),
+        distribution: Dist = DIST,
+        motion: Motion = MOTION,
+        map_kind: MapKind = MAP,
+        width: int = WIDTH,
+        height: int = HEIGHT,
+        targets: int = TARGETS,
     ) -> None:
-        """Train on optimal decisions; the best fold's model is written to OUT/model.pt."""
+        """Train on optimal decisions (the best fold's model goes to OUT/model.pt), or the DRQN by
+        reward in the grid world set by the grid options (OUT/drqn.pt)."""
+        if model is Model.drqn:
+            _train_drqn(out, episodes, seed, resume, threads,
+                        grid_config(distribution, motion, map_kind, width, height, targets))
+            return
+        if dataset is None:
+            raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
+                                     param_hint="--dataset")
         from policy.data import DatasetError
         from policy.training import TrainConfig
         from policy.training import train as run
@@ -70,3 +90,19 @@ def register(app: typer.Typer) -> None:
             f"{out}/model.pt: CV accuracy {100 * summary['cv_acc_mean']:.2f} ± {100 * summary['cv_acc_sd']:.2f} % "
             f"over {len(summary['folds'])} fold(s); best fold {summary['best_fold']}"
         )
+
+
+def _train_drqn(out: Path, episodes: int, seed: int, resume: bool, threads: int | None, grid) -> None:
+    import torch
+
+    from policy.drqn import DrqnConfig, train_drqn
+    from policy.nn import CheckpointError
+
+    if grid.motion != "static":
+        raise typer.BadParameter("the DRQN baseline has 4 actions: static targets only", param_hint="--motion")
+    torch.set_num_threads(threads or 1)
+    try:
+        path = train_drqn(DrqnConfig(episodes=episodes), grid, out, seed=seed, resume=resume)
+    except CheckpointError as e:
+        raise typer.BadParameter(str(e), param_hint="--resume") from e
+    typer.echo(f"{path}: DRQN after {episodes} episodes (resume with --resume, more with a larger --episodes)")

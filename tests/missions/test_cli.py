@@ -56,3 +56,18 @@ def test_sitl_command_runs_and_writes_readable_tlogs(tmp_path: Path) -> None:
         assert log.recv_match(type="HEARTBEAT") is not None
     r = runner.invoke(app, ["sitl", "--signing-key", "zz"])
     assert r.exit_code != 0 and "64 hex" in _text(r.output)
+
+
+def test_train_drqn_by_reward_and_dataset_rules(tmp_path: Path) -> None:
+    r = runner.invoke(app, ["train", "--out", str(tmp_path / "ds_run")])
+    assert r.exit_code != 0 and "--dataset" in _text(r.output), "the dual-stream net needs a dataset"
+    r = runner.invoke(app, ["train", "--model", "drqn", "--out", str(tmp_path / "h"), "--motion", "herd"])
+    assert r.exit_code != 0 and "static" in _text(r.output)
+    r = runner.invoke(app, ["train", "--model", "drqn", "--out", str(tmp_path / "d"), "--episodes", "16",
+                            "--width", "6", "--height", "6", "--targets", "2"])
+    assert r.exit_code == 0, r.output
+    from policy.drqn import load_drqn
+
+    _, doc = load_drqn(tmp_path / "d" / "drqn.pt")
+    assert doc["grid_config"]["width"] == 6 and doc["drqn_config"]["episodes"] == 16 and doc["seed"] == 0
+    assert (tmp_path / "d" / "drqn_state.pt").exists(), "a snapshot to resume or extend from"
