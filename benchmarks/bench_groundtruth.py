@@ -30,30 +30,30 @@ def timed(fn, *a):
     return out, time.perf_counter() - t0
 
 
-def pt_speed() -> list[dict]:
+def versus(title: str, ours: str, theirs: str, cases, motion: str, seed0: int, fast, slow, what: str) -> list[dict]:
+    """Time our solver and the exhaustive one on the same episodes, check they agree, print the ratio."""
     rows = []
-    print(f"{'|R|':>4}{'episodes':>10}{'Held-Karp s/ep':>16}{'brute force s/ep':>18}{'speed-up':>10}")
-    for r, n in [(5, 2000), (6, 1000), (7, 300), (8, 100), (9, 20)]:
-        ep = sample_episodes(GridConfig(n_targets=r), n, seed=r)
-        (hk, _), t_hk = timed(held_karp, ep.agent, ep.targets, None)
-        bf, t_bf = timed(pt_bruteforce, ep.agent, ep.targets)
-        assert (hk == bf).all(), "Held-Karp disagrees with brute force"
-        rows.append({"targets": r, "episodes": n, "held_karp_s": t_hk / n, "brute_force_s": t_bf / n})
-        print(f"{r:>4}{n:>10}{t_hk / n:>16.2e}{t_bf / n:>18.2e}{t_bf / t_hk:>9.0f}x")
+    print(f"{'|R|':>4}{'episodes':>10}{ours + ' s/ep':>16}{theirs + ' s/ep':>18}{'speed-up':>10}  {title}")
+    for r, n in cases:
+        ep = sample_episodes(GridConfig(n_targets=r, motion=motion), n, seed=seed0 + r)
+        (mine, _), t_mine = timed(fast, ep)
+        ref, t_ref = timed(slow, ep)
+        assert (mine == ref).all(), f"{ours} disagrees with {what}"
+        rows.append({"targets": r, "episodes": n, f"{ours}_s": t_mine / n, f"{theirs}_s": t_ref / n})
+        print(f"{r:>4}{n:>10}{t_mine / n:>16.2e}{t_ref / n:>18.2e}{t_ref / t_mine:>9.0f}x")
     return rows
+
+
+def pt_speed() -> list[dict]:
+    return versus("(static)", "held_karp", "brute_force", [(5, 2000), (6, 1000), (7, 300), (8, 100), (9, 20)],
+                  "static", 0, lambda ep: held_karp(ep.agent, ep.targets, None),
+                  lambda ep: pt_bruteforce(ep.agent, ep.targets), "brute force")
 
 
 def lookahead_speed() -> list[dict]:
-    rows = []
-    print(f"{'|R|':>4}{'episodes':>10}{'DP s/ep':>12}{'all orders s/ep':>17}{'speed-up':>10}  (random walk)")
-    for r, n in [(3, 500), (4, 300), (5, 100), (6, 30), (7, 6)]:
-        ep = sample_episodes(GridConfig(n_targets=r, motion="random_walk"), n, seed=50 + r)
-        (dp, _), t_dp = timed(lookahead_dp, ep.agent, ep.paths, None)
-        bf, t_bf = timed(lookahead_bruteforce, ep.agent, ep.paths)
-        assert (dp == bf).all(), "lookahead DP disagrees with the exhaustive search"
-        rows.append({"targets": r, "episodes": n, "dp_s": t_dp / n, "all_orders_s": t_bf / n})
-        print(f"{r:>4}{n:>10}{t_dp / n:>12.2e}{t_bf / n:>17.2e}{t_bf / t_dp:>9.0f}x")
-    return rows
+    return versus("(random walk)", "dp", "all_orders", [(3, 500), (4, 300), (5, 100), (6, 30), (7, 6)],
+                  "random_walk", 50, lambda ep: lookahead_dp(ep.agent, ep.paths, None),
+                  lambda ep: lookahead_bruteforce(ep.agent, ep.paths), "the exhaustive search")
 
 
 def end_to_end() -> float:

@@ -2,6 +2,8 @@
 
 import asyncio
 import time
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 
 import numpy as np
 import pytest
@@ -17,6 +19,19 @@ from mavsdk.plugins.offboard import PositionNedYaw
 from mavsdk.plugins.telemetry import FlightMode
 
 
+@asynccontextmanager
+async def _autopilot(port: int) -> AsyncIterator:
+    """A ground-station MAVSDK listening on `port`, and the first autopilot it discovers."""
+    m = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+    try:
+        await m.add_any_connection(f"udpin://0.0.0.0:{port}")
+        system = await m.first_autopilot(timeout_s=15.0)
+        assert system is not None, "MAVSDK discovered no autopilot"
+        yield system
+    finally:
+        m.destroy()
+
+
 async def _until(pred, timeout: float, what: str) -> None:
     end = time.monotonic() + timeout
     while not await pred():
@@ -30,11 +45,7 @@ def test_mavsdk_connect_health_arm_takeoff_mission_land_disarm(sitl_factory) -> 
     port = sitl.cfg.api_ports[1]
 
     async def fly() -> dict:
-        m = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
-        try:
-            await m.add_any_connection(f"udpin://0.0.0.0:{port}")
-            system = await m.first_autopilot(timeout_s=15.0)
-            assert system is not None, "MAVSDK discovered no autopilot"
+        async with _autopilot(port) as system:
             tel, act, mis = TelemetryAsync(system), ActionAsync(system), MissionAsync(system)
             await _until(tel.health_all_ok, 15, "health all ok")
             h = await tel.health()
@@ -81,8 +92,6 @@ def test_mavsdk_connect_health_arm_takeoff_mission_land_disarm(sitl_factory) -> 
             await _until(disarmed, 30, "disarmed after landing")
             return {"visited": np.array(visited), "truth": truth, "reported": reported,
                     "landed": sitl.model.state.landed}
-        finally:
-            m.destroy()
 
     r = asyncio.run(fly())
     assert np.linalg.norm(r["reported"][:2] - r["truth"][:2]) < 4.0
@@ -109,11 +118,7 @@ def test_mavsdk_params_mission_download_geofence_offboard_and_return(sitl_factor
     port = sitl.cfg.api_ports[1]
 
     async def fly() -> None:
-        m = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
-        try:
-            await m.add_any_connection(f"udpin://0.0.0.0:{port}")
-            system = await m.first_autopilot(timeout_s=15.0)
-            assert system is not None, "MAVSDK discovered no autopilot"
+        async with _autopilot(port) as system:
             tel, act, mis = TelemetryAsync(system), ActionAsync(system), MissionAsync(system)
             par, off = ParamAsync(system), OffboardAsync(system)
             await _until(tel.health_all_ok, 15, "health all ok")
@@ -153,8 +158,6 @@ def test_mavsdk_params_mission_download_geofence_offboard_and_return(sitl_factor
 
             await _until(disarmed, 30, "landed and disarmed after RTL")
             assert np.hypot(*sitl.vehicle.estimate()[:2]) < 1.0, "back over home"
-        finally:
-            m.destroy()
 
     asyncio.run(fly())
     assert sitl.vehicle.counters.fence_rejections >= 1
