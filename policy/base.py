@@ -44,6 +44,9 @@ class Policy(ABC):
     name: str = "policy"
     #: True only for solvers and the oracle: they receive the episodes' truth in reset()
     needs_truth: bool = False
+    #: what the world does with an off-map choice: "random" (Section V-A's random valid move) or
+    #: "stay" (a wall bump leaves the agent in place: the DRQN's own world, where it learned)
+    off_map: str = "random"
 
     @abstractmethod
     def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:

@@ -72,7 +72,7 @@ def evaluate(
         ep = ep_all.subset(slice(b0, b0 + batch))
         n = len(ep)
         policy.reset(cfg, n, seed + b0, ep if policy.needs_truth else None)
-        world = BatchGridWorld(ep, seed + b0)
+        world = BatchGridWorld(ep, seed + b0, off_map=policy.off_map)
         while not world.done.all():
             obs = observe(world, None if view_fn is None else view_fn(world))
             world.step(policy.act(obs))

@@ -1,10 +1,11 @@
 import numpy as np
 import pytest
 
+from policy.base import Observation, Policy
 from policy.baselines import make_policy
 from policy.evaluation import evaluate
 from policy.groundtruth import optimal_lengths
-from sim.gridworld import GridConfig, sample_episodes
+from sim.gridworld import Episodes, GridConfig, sample_episodes
 
 
 def test_oracle_is_optimal_on_every_setting() -> None:
@@ -55,3 +56,28 @@ def test_bad_arguments() -> None:
         evaluate(make_policy("ns", cfg), cfg, 0, seed=1)
     with pytest.raises(ValueError, match="batch"):
         evaluate(make_policy("ns", cfg), cfg, 10, seed=1, batch=0)
+
+
+class _AlwaysFirst(Policy):
+    """Always action 0: it walks into a wall and keeps choosing it."""
+
+    name = "always_first"
+
+    def __init__(self, off_map: str) -> None:
+        self.off_map = off_map
+
+    def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
+        pass
+
+    def act(self, obs: Observation) -> np.ndarray:
+        return np.zeros(len(obs.positions), dtype=np.int64)
+
+
+def test_the_policy_chooses_its_wall_rule() -> None:
+    cfg = GridConfig(width=6, height=6, n_targets=2)
+    stay = evaluate(_AlwaysFirst("stay"), cfg, 20, seed=1, progress=False)
+    rand = evaluate(_AlwaysFirst("random"), cfg, 20, seed=1, progress=False)
+    pinned = [p for p in stay.sample_paths if len(p) > 12]
+    assert pinned and all((p[-10:] == p[-1]).all() for p in pinned), "a bump leaves the agent in place"
+    assert stay.replaced.sum() > 0 and (stay.moves >= rand.moves).all()
+    assert any(len(np.unique(p[-10:], axis=0)) > 1 for p in rand.sample_paths), "random valid moves wander on"
