@@ -25,6 +25,10 @@ TABLE_COLUMNS = (
     ("cv_acc", "(h) CV acc %", "{}"),
     ("mean_moves", "mean moves", "{:.1f}"),
     ("mean_ratio_to_optimal", "moves / optimal", "{:.2f}"),
+    # (g) averages over the targets an episode found, so a policy that finds two targets fast and
+    # then times out scores well on it; these two show what it left unfound
+    ("success_pct", "all found %", "{:.1f}"),
+    ("targets_per_move", "targets / move", "{:.3f}"),
 )
 
 
@@ -38,10 +42,6 @@ def format_cell(row: dict[str, Any], key: str, fmt: str) -> str:
         return "-" if m is None else f"{m:.2f}±{s:.3f}"
     v = row.get(key)
     return "-" if v is None else fmt.format(v)
-
-
-#: the old private name, still imported by missions/table1.py
-_fmt = format_cell
 
 
 def markdown_table(rows: list[tuple[str, dict[str, Any], str | None]]) -> str:
