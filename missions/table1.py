@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from provenance import atomic_open, atomic_write_json, stamp
+from provenance import atomic_open, atomic_write_json, git_revision, stamp
 from sim.gridworld import GridConfig
 
 
@@ -36,6 +36,9 @@ class Scale:
 
 SCALES = {
     "small": Scale(train_static=2000, train_moving=3000, test=1000, epochs=4, folds=5, run_folds=2,
+                   optimizer="adam", lr=1e-3),
+    # a minute end to end: checks the pipeline (the numbers mean nothing at this size)
+    "smoke": Scale(train_static=40, train_moving=40, test=30, epochs=1, folds=2, run_folds=1,
                    optimizer="adam", lr=1e-3),
     "full": Scale(train_static=20000, train_moving=60000, test=20000, epochs=50, folds=10, run_folds=10,
                   optimizer="sgd", lr=1e-3),
@@ -104,9 +107,10 @@ def run_row(row: Row, scale_name: str, work: str, seed: int, drqn_checkpoint: st
     sc = SCALES[scale_name]
     d = Path(work) / _slug(row.name)
     d.mkdir(parents=True, exist_ok=True)
+    (d / "eval.npz").unlink(missing_ok=True)  # a row that is "not yet" must not plot an old run
     t0 = time.perf_counter()
     info: dict[str, Any] = {"row": row.name, "grid": row.grid.to_dict(), "method": row.method, "model": row.model,
-                            "rendered": row.rendered}
+                            "rendered": row.rendered, "git_revision": git_revision()}
     view_fn = _renderer_view_fn(row.grid, seed) if row.rendered else None
     if row.kind == "ns":
         policy = make_policy("ns", row.grid)
@@ -151,7 +155,8 @@ def run_table1(scale: str, out: Path, seed: int = 0, only: list[str] | None = No
     results = fan_out(run_row, tasks, workers=workers, ray_address=ray_address)
     previous = out / f"table1_{scale}.json"
     if only and previous.exists():  # re-running some rows: keep the others from the last run
-        done = {r["row"]: r for r in json.loads(previous.read_text())["rows"]}
+        last = json.loads(previous.read_text())
+        done = {r["row"]: {"git_revision": last["git_revision"]} | r for r in last["rows"]}
         done |= {r["row"]: r for r in results}
         results = [done[r.name] for r in rows() if r.name in done]
     doc = stamp({"scale": asdict(SCALES[scale]), "rows": [r["row"] for r in results]}, seed, rows=results)
@@ -187,7 +192,13 @@ def render_markdown(doc: dict[str, Any], scale: str) -> str:
         p = PAPER_TABLE1.get(name)
         if p:
             lines.append(f"| {name} | paper | " + " | ".join(format_cell(p, k, f) for k, _, f in TABLE_COLUMNS) + " |")
-    lines += ["", "Columns as defined in docs/metrics.md; (h) is held-out accuracy over the folds run.", ""]
+    lines += ["", "Columns as defined in docs/metrics.md; (h) is held-out accuracy over the folds run."]
+    other = [f"{r['row']} (`{r['git_revision']}`)" for r in doc["rows"]
+             if r.get("git_revision", doc["git_revision"]) != doc["git_revision"]]
+    if other:
+        lines.append("Rows kept from an earlier run (`--only` re-ran the others), with their revision: "
+                     + ", ".join(other) + ".")
+    lines.append("")
     return "\n".join(lines)
 
 
@@ -198,7 +209,7 @@ def plot_differences(out: Path, work: Path, todo: list[Row], scale: str) -> None
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    bins = np.arange(-0.5, 101.5, 2)
+    bins = np.arange(-0.5, 102.5, 2)  # the last bin holds the clipped 100
     for r in todo:
         f = work / _slug(r.name) / "eval.npz"
         if r.grid.moving or not f.exists():

@@ -11,12 +11,13 @@ import typer
 class ScaleName(StrEnum):
     small = "small"
     full = "full"
+    smoke = "smoke"
 
 
 def register(app: typer.Typer) -> None:
     @app.command()
     def table1(
-        scale: ScaleName = typer.Option(ScaleName.small, "--scale", help="small: 2 CPU cores, < 30 min; full: the paper's protocol."),
+        scale: ScaleName = typer.Option(ScaleName.small, "--scale", help="small: 2 CPU cores, < 30 min; full: the paper's protocol; smoke: a pipeline check."),
         out: Path = typer.Option(Path("results"), "--out"),
         seed: int = typer.Option(0, "--seed"),
         only: list[str] | None = typer.Option(None, "--only", help="Run only these rows (paper labels)."),
