@@ -27,6 +27,7 @@ from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
 
 from ..nn.checkpoint import CheckpointError, read_torch_document
 from .model import Drqn, drqn_view
+from .plots import plot_drqn_training
 
 FORMAT = "uavsearch-drqn/1"
 STATE_FORMAT = "uavsearch-drqn-state/1"
@@ -286,7 +287,8 @@ class DrqnLearner:
 
 def train_drqn(cfg: DrqnConfig, grid: GridConfig, out: str | Path, seed: int = 0, progress: bool = True,
                resume: bool = False) -> Path:
-    """Train, writing OUT/drqn.pt (the policy) and OUT/drqn_state.pt (the resumable snapshot)."""
+    """Train, writing OUT/drqn.pt (the policy), OUT/drqn_state.pt (the resumable snapshot) and
+    OUT/drqn_training.png (reward, timeouts and loss)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     snap = out / "drqn_state.pt"
@@ -308,6 +310,7 @@ def train_drqn(cfg: DrqnConfig, grid: GridConfig, out: str | Path, seed: int = 0
     if cfg.save_every:
         atomic_write_bytes(snap, _torch_bytes(learner.state()))
     losses = learner.losses
+    plot_drqn_training(learner.rewards, learner.timeouts, losses, grid.n_targets, out / "drqn_training.png")
     curve = [float(np.mean(losses[i : i + 100])) for i in range(0, len(losses), 100)]
     return save_drqn(out / "drqn.pt", learner.net, cfg, grid, seed, steps=learner.steps, updates=learner.updates,
                      loss_curve=curve, mean_reward_last_100=float(np.mean(learner.rewards[-100:])),

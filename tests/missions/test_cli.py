@@ -71,3 +71,4 @@ def test_train_drqn_by_reward_and_dataset_rules(tmp_path: Path) -> None:
     _, doc = load_drqn(tmp_path / "d" / "drqn.pt")
     assert doc["grid_config"]["width"] == 6 and doc["drqn_config"]["episodes"] == 16 and doc["seed"] == 0
     assert (tmp_path / "d" / "drqn_state.pt").exists(), "a snapshot to resume or extend from"
+    assert (tmp_path / "d" / "drqn_training.png").stat().st_size > 1000, "a training plot"
