@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from provenance import atomic_write_bytes, stamp
+from provenance import atomic_write_bytes, git_revision, stamp
 from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
 
 from ..nn.checkpoint import CheckpointError, read_torch_document
@@ -291,6 +291,7 @@ def train_drqn(cfg: DrqnConfig, grid: GridConfig, out: str | Path, seed: int = 0
     OUT/drqn_training.png (reward, timeouts and loss)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    git_revision()  # the code that trains is the code at the start: pin the cached revision now
     snap = out / "drqn_state.pt"
     learner = DrqnLearner(cfg, grid, seed)
     if resume and snap.exists():
