@@ -32,6 +32,9 @@ class Scale:
     optimizer: str
     lr: float
     arch: str = "small"
+    #: train the DRQN row's agent for this many episodes (resumable, in the row's work folder);
+    #: 0: test a given checkpoint (the shipped one by default)
+    drqn_episodes: int = 0
 
 
 SCALES = {
@@ -39,9 +42,9 @@ SCALES = {
                    optimizer="adam", lr=1e-3),
     # a minute end to end: checks the pipeline (the numbers mean nothing at this size)
     "smoke": Scale(train_static=40, train_moving=40, test=30, epochs=1, folds=2, run_folds=1,
-                   optimizer="adam", lr=1e-3),
+                   optimizer="adam", lr=1e-3, drqn_episodes=16),
     "full": Scale(train_static=20000, train_moving=60000, test=20000, epochs=50, folds=10, run_folds=10,
-                  optimizer="sgd", lr=1e-3),
+                  optimizer="sgd", lr=1e-3, drqn_episodes=20_000),
 }
 
 
@@ -115,8 +118,13 @@ def run_row(row: Row, scale_name: str, work: str, seed: int, drqn_checkpoint: st
     if row.kind == "ns":
         policy = make_policy("ns", row.grid)
     elif row.kind == "drqn":
+        if drqn_checkpoint is None and sc.drqn_episodes:
+            from policy.drqn import DrqnConfig, train_drqn
+
+            drqn_checkpoint = str(train_drqn(DrqnConfig(episodes=sc.drqn_episodes), row.grid, d / "drqn", seed=seed,
+                                             progress=False, resume=True))
         if drqn_checkpoint is None or not Path(drqn_checkpoint).exists():
-            return info | {"not_yet": "no DRQN checkpoint (train one with policy.drqn.train_drqn)"}
+            return info | {"not_yet": "no DRQN checkpoint (train one: uavsearch train --model drqn)"}
         policy = make_policy("drqn", row.grid, checkpoint=Path(drqn_checkpoint))
         info["drqn_checkpoint"] = str(drqn_checkpoint)
     else:

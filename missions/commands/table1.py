@@ -23,13 +23,17 @@ def register(app: typer.Typer) -> None:
         only: list[str] | None = typer.Option(None, "--only", help="Run only these rows (paper labels)."),
         workers: int | None = typer.Option(None, "--workers", help="Local processes (default: CPU count)."),
         ray_address: str | None = typer.Option(None, "--ray-address", help="Fan rows out over a ray cluster."),
-        drqn_checkpoint: Path | None = typer.Option(None, "--drqn-checkpoint", help="Default: the shipped one."),
+        drqn_checkpoint: Path | None = typer.Option(
+            None, "--drqn-checkpoint",
+            help="Test this DRQN. Default: full trains one (20k episodes, resumable), small tests the shipped one."),
     ) -> None:
         """Reproduce Table I with the paper's figures side by side (Markdown + JSON + Fig. 4)."""
-        from missions.table1 import run_table1
+        from missions.table1 import SCALES, run_table1
         from policy.nn import shipped_checkpoint
 
-        ckpt = drqn_checkpoint or shipped_checkpoint("drqn_static_random")
+        ckpt = drqn_checkpoint
+        if ckpt is None and not SCALES[scale.value].drqn_episodes:
+            ckpt = shipped_checkpoint("drqn_static_random")
         try:
             run_table1(scale.value, out, seed, only, workers, ray_address, ckpt)
         except ValueError as e:
