@@ -191,8 +191,7 @@ class DrqnLearner:
         view takes few values, so this saves most of the convolution work."""
         lead = views.shape[:-3]
         codes = np.concatenate([views.reshape(-1, 27), found.reshape(-1, 9)], axis=1).astype(np.uint8)
-        uniq, first, inverse = np.unique(codes, axis=0, return_index=True, return_inverse=True)
-        del uniq
+        _, first, inverse = np.unique(codes, axis=0, return_index=True, return_inverse=True)
         fr = drqn_view(views.reshape(-1, 3, 3, 3)[first], found.reshape(-1, 3, 3)[first], self.cfg.image)
         return torch.from_numpy(fr), torch.from_numpy(inverse.reshape(lead))
 
@@ -248,9 +247,8 @@ class DrqnLearner:
             before = self.steps
             self.steps += int(active.sum())
             if self.steps >= cfg.warmup_steps and self.replay.episodes:
-                for k in range(before // cfg.update_every, self.steps // cfg.update_every):
+                for _ in range(before // cfg.update_every, self.steps // cfg.update_every):
                     self.learn()
-                    del k
             for _ in range(before // cfg.target_every, self.steps // cfg.target_every):
                 if self.updates:
                     self.soft_update()
