@@ -8,21 +8,18 @@ from pathlib import Path
 
 import typer
 
-from .options import DIST, HEIGHT, MAP, MOTION, TARGETS, WIDTH, Dist, MapKind, Motion, grid_config
+from sim.gridworld import GridConfig
+
+from .options import with_grid
 
 
 def register(app: typer.Typer) -> None:
     @app.command("eval")
+    @with_grid
     def eval_(
         policy: list[str] = typer.Option(["ns"], "--policy", "-p", help="Policy name; repeat for several."),
         episodes: int = typer.Option(1000, "--episodes", min=1),
         seed: int = typer.Option(0, "--seed", help="Seed of the test episodes (same for every policy)."),
-        distribution: Dist = DIST,
-        motion: Motion = MOTION,
-        map_kind: MapKind = MAP,
-        width: int = WIDTH,
-        height: int = HEIGHT,
-        targets: int = TARGETS,
         checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Checkpoint for dualstream/ssn/drqn."),
         loop_guard: bool | None = typer.Option(
             None, "--loop-guard/--no-loop-guard",
@@ -30,6 +27,8 @@ def register(app: typer.Typer) -> None:
         ),
         out: Path | None = typer.Option(None, "--out", help="Write results.json, table.md and plots here."),
         as_json: bool = typer.Option(False, "--json", help="Print only the JSON document on stdout."),
+        *,
+        grid: GridConfig,
     ) -> None:
         """Evaluate policies: every Table I column, mean moves and the ratio to optimal."""
         from policy.baselines import known_policies
@@ -45,7 +44,7 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
         if checkpoint is not None and not checkpoint.is_file():
             raise typer.BadParameter(f"no checkpoint file at {checkpoint}", param_hint="--checkpoint")
-        cfg = grid_config(distribution, motion, map_kind, width, height, targets)
+        cfg = grid
         try:
             doc = run_eval(policy, cfg, episodes, seed, out, progress=not as_json, checkpoint=checkpoint,
                            echo=not as_json, loop_guard=loop_guard)

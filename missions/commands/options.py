@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
+from collections.abc import Callable
 from enum import StrEnum
+from typing import Any
 
 import typer
 
@@ -50,3 +54,26 @@ def grid_config(
         )
     except ConfigError as e:
         raise typer.BadParameter(str(e)) from e
+
+
+#: the grid options every grid command takes, in --help order
+_GRID_PARAMS = [
+    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=kind)
+    for name, default, kind in (("distribution", DIST, Dist), ("motion", MOTION, Motion), ("map_kind", MAP, MapKind),
+                                ("width", WIDTH, int), ("height", HEIGHT, int), ("targets", TARGETS, int))
+]
+
+
+def with_grid(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a typer command the grid options (--distribution ... --targets); the command receives
+    them checked, as one `grid: GridConfig` argument (a bad value is a clear usage error)."""
+    sig = inspect.signature(fn)
+    keep = [p for p in sig.parameters.values() if p.name != "grid"]
+
+    @functools.wraps(fn)
+    def command(**kw: Any) -> Any:
+        grid = grid_config(*(kw.pop(p.name) for p in _GRID_PARAMS))
+        return fn(grid=grid, **kw)
+
+    command.__signature__ = sig.replace(parameters=keep + _GRID_PARAMS)  # type: ignore[attr-defined]
+    return command

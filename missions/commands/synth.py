@@ -7,7 +7,9 @@ from pathlib import Path
 
 import typer
 
-from .options import DIST, HEIGHT, MAP, MOTION, TARGETS, WIDTH, Dist, MapKind, Motion, grid_config
+from sim.gridworld import GridConfig
+
+from .options import with_grid
 
 
 class Method(StrEnum):
@@ -17,28 +19,25 @@ class Method(StrEnum):
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @with_grid
     def synth(
         out: Path = typer.Option(..., "--out", help="Dataset directory to create."),
         episodes: int = typer.Option(20000, "--episodes", min=1),
         seed: int = typer.Option(0, "--seed"),
         method: Method = typer.Option(Method.pt, "--method", help="Ground truth: optimal PT or CU."),
-        distribution: Dist = DIST,
-        motion: Motion = MOTION,
-        map_kind: MapKind = MAP,
-        width: int = WIDTH,
-        height: int = HEIGHT,
-        targets: int = TARGETS,
         rendered: bool = typer.Option(
             False, "--rendered", help="Views from the simulated 50x50 camera (the paper's +S)."
         ),
         shard_size: int = typer.Option(100_000, "--shard-size", min=1, help="Samples per shard."),
         overwrite: bool = typer.Option(False, "--overwrite", help="Replace an existing dataset."),
         progress: bool = typer.Option(True, "--progress/--quiet", help="Show a progress bar."),
+        *,
+        grid: GridConfig,
     ) -> None:
         """Synthesise training samples from optimal (or CU) decisions."""
         from policy.data import open_dataset, synthesize
 
-        cfg = grid_config(distribution, motion, map_kind, width, height, targets)
+        cfg = grid
         if method is Method.cu and cfg.moving:
             raise typer.BadParameter(
                 "CU is defined for static targets; use --method pt", param_hint="--method"

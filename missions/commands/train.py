@@ -8,7 +8,9 @@ from pathlib import Path
 
 import typer
 
-from .options import DIST, HEIGHT, MAP, MOTION, TARGETS, WIDTH, Dist, MapKind, Motion, grid_config
+from sim.gridworld import GridConfig
+
+from .options import with_grid
 
 
 class Model(StrEnum):
@@ -35,6 +37,7 @@ class Device(StrEnum):
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @with_grid
     def train(
         dataset: Path | None = typer.Option(None, "--dataset",
                                             help="Directory written by `uavsearch synth` (not for drqn)."),
@@ -57,18 +60,13 @@ def register(app: typer.Typer) -> None:
                                                help="Send folds to this ray cluster (dataset on a shared path)."),
         ddp: int = typer.Option(0, "--ddp", min=0, help="DDP processes (GPUs) per fold; 0: off."),
         episodes: int = typer.Option(20_000, "--episodes", min=1, help="drqn: training episodes (the paper's 20k)."),
-        distribution: Dist = DIST,
-        motion: Motion = MOTION,
-        map_kind: MapKind = MAP,
-        width: int = WIDTH,
-        height: int = HEIGHT,
-        targets: int = TARGETS,
+        *,
+        grid: GridConfig,
     ) -> None:
         """Train on optimal decisions (the best fold's model goes to OUT/model.pt), or the DRQN by
         reward in the grid world set by the grid options (OUT/drqn.pt)."""
         if model is Model.drqn:
-            _train_drqn(out, episodes, seed, resume, threads,
-                        grid_config(distribution, motion, map_kind, width, height, targets))
+            _train_drqn(out, episodes, seed, resume, threads, grid)
             return
         if dataset is None:
             raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
@@ -92,7 +90,7 @@ def register(app: typer.Typer) -> None:
         )
 
 
-def _train_drqn(out: Path, episodes: int, seed: int, resume: bool, threads: int | None, grid) -> None:
+def _train_drqn(out: Path, episodes: int, seed: int, resume: bool, threads: int | None, grid: GridConfig) -> None:
     import torch
 
     from policy.drqn import DrqnConfig, train_drqn
