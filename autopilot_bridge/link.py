@@ -16,6 +16,7 @@ from pathlib import Path
 from pymavlink import mavutil
 
 from . import px4_modes
+from .tlog import CompanionTlog
 
 mavlink = mavutil.mavlink
 
@@ -58,12 +59,16 @@ class VehicleLink:
         source_component: int = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER,
         tlog: Path | None = None,
         signing_key: bytes | None = None,
+        tlog_meta: dict | None = None,
     ) -> None:
         self.conn = mavutil.mavlink_connection(
             address, source_system=source_system, source_component=source_component
         )
-        if tlog is not None:
-            self.conn.setup_logfile(str(tlog), mode="wb")
+        # both directions of the link, in MAVProxy's .tlog format (pymavlink's own logfile
+        # stays empty on UDP connections)
+        self.tlog = CompanionTlog(tlog, tlog_meta) if tlog is not None else None
+        if self.tlog is not None:
+            self.conn.mav.set_send_callback(self.tlog.write_message)
         if signing_key is not None:
             if len(signing_key) != 32:
                 raise ValueError("a MAVLink2 signing key is 32 bytes")
@@ -89,6 +94,8 @@ class VehicleLink:
                 continue
             if msg is None or msg.get_type() == "BAD_DATA":
                 continue
+            if self.tlog is not None:
+                self.tlog.write_message(msg)
             self._on_message(msg)
             for fn in list(self._handlers):
                 fn(msg)
@@ -207,6 +214,8 @@ class VehicleLink:
         self._stop.set()
         self._rx.join(timeout=1.0)
         self.conn.close()
+        if self.tlog is not None:
+            self.tlog.close()
 
     def __enter__(self) -> VehicleLink:
         return self
