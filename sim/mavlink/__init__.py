@@ -1,11 +1,12 @@
 """The SITL vehicle's MAVLink side (PX4 flavour) and the lock-step runner."""
 
+from .geofence import Geofence
 from .images import encode_png, frame_messages
 from .modes import px4_custom_mode, px4_mode_name
 from .sitl import Sitl, SitlConfig
 from .tlog import TlogWriter
 from .udp import LinkStats, UdpLink
-from .vehicle import Geofence, MavlinkVehicle
+from .vehicle import MavlinkVehicle
 
 __all__ = [
     "Geofence", "LinkStats", "MavlinkVehicle", "Sitl", "SitlConfig", "TlogWriter", "UdpLink",

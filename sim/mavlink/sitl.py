@@ -26,9 +26,10 @@ from sim.gridworld import BatchGridWorld, GridConfig, cell_to_ned, sample_episod
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig, GpsModel
 
+from .geofence import Geofence
 from .tlog import TlogWriter
 from .udp import UdpLink
-from .vehicle import Geofence, MavlinkVehicle
+from .vehicle import MavlinkVehicle
 
 TICK_S = 0.02
 log = logging.getLogger(__name__)
