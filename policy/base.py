@@ -24,6 +24,10 @@ class Observation:
     valid: np.ndarray  # (n, A) bool: actions that stay on the map
     t: np.ndarray  # (n,) moves made so far
     active: np.ndarray  # (n,) bool: episodes still running (act() may ignore the others)
+    #: (n, h, w) float32 posterior over the agent's true cell under GPS noise (each row sums to
+    #: 1); None = the position is known exactly (positions is the truth). With it, `positions`
+    #: holds the estimate's most likely cell and `maps` the map built from the estimate.
+    position_prob: np.ndarray | None = None
 
 
 def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:

@@ -1,0 +1,293 @@
+"""The belief state: what the drone knows about the search, from its observations only.
+
+One module, used by the belief planner, the learned search network, the evaluation and the
+flight alike. Everything is batched over n episodes of one GridConfig: every array carries a
+leading episode axis and every update is a handful of whole-array numpy operations (the 3 x 3
+view is handled as 9 shifted copies of the position distribution, never a per-episode loop).
+
+What it tracks, per cell:
+- visited: P(the agent has stood on the cell). With an exact position, 0/1.
+- seen:    P(the 3 x 3 view has shown the cell at least once).
+- target:  expected number of NOT-yet-found targets in the cell now.
+- found:   expected number of already-found targets in the cell now (moving targets keep
+           moving after they are found, and the view shows them like any other).
+- age:     expected moves since the view last showed the cell (how stale `seen` is).
+- position: the agent's cell distribution (one-hot, or the GPS posterior obs.position_prob).
+and n_found (n,): the believed number of targets found so far.
+
+The model (why it is built this way):
+- Observation. The view shows, for each of its 9 slots d, whether a target stands at
+  (agent + d) now. With the agent at q with probability p(q), cell c is shown in slot d with
+  probability p(c - d); the update is the expectation over q of the exact (known-position)
+  update, so with an exact position it is exact, and under GPS noise it is the
+  probabilistic version of the same thing (like autopilot_bridge's probabilistic map, which
+  spreads a visit over the posterior). The view's off-map channel also tells where the agent
+  can be (at a border or not): p is first conditioned on agreeing with it.
+- A target shown in the agent's own cell has been found (the world recovers a target when
+  the agent stands on its cell at the same time, and the observation comes after that move).
+- Found or not? The view shows targets whether found or not. A target shown in another
+  cell is attributed to the unfound and found populations in proportion to their expected
+  counts there: P(unfound) = target / (target + found), and 1 when both are 0 (a target
+  nobody expected is new). For static targets this is exact: a sighted target is found iff
+  its cell was visited (found = 1 exactly there, target = 0). For moving targets it is the
+  Bayes rule for one target in a cell whose occupant is either population, with each
+  population's density treated as independent per cell: a found target that wanders back
+  into view near where it was found is recognised as found, a sighting far from every found
+  target's reachable area counts as new.
+- Static targets: the unfound mass is the sighted-not-found targets (1 in their cells) plus
+  the never-sighted ones, R - n_found - sighted, spread over the cells not yet seen in
+  proportion to the placement prior (exact for the random placement, where the posterior of
+  the unseen cells is uniform; the marginal approximation for the others).
+- Moving targets: both densities are diffused by the motion model on every target move
+  (t -> t + 1 with t % target_period == 0): random walk: to each in-bounds neighbour alike;
+  herd (shared, unknown direction): the same, plus the deviation's stay (10 % / 3) and the
+  stay of a target pushed against the border. Cells in view are then set from the view, and
+  the mass outside the view is rescaled so the populations keep their known sizes
+  (R - n_found unfound, n_found found): a probability-hypothesis-density filter with known
+  cardinality. An episode still running (obs.active) has at least one target left, which
+  caps n_found at R - 1 while it runs. The support is exact (a target can only be where its density is > 0: the
+  motion kernel covers every move the world makes); the spread within it is approximate
+  (targets do not share cells; the herd's direction is not estimated).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.gridworld import GridConfig
+
+#: the planes() channels, in order
+PLANE_NAMES: tuple[str, ...] = (
+    "visited",  # P(cell visited)
+    "seen",  # P(cell shown by the view at least once)
+    "target",  # expected not-yet-found targets in the cell now
+    "found",  # expected already-found targets in the cell now
+    "agent",  # the agent's cell distribution (one-hot when the position is exact)
+    "prior",  # placement prior times R: the expected targets per cell before any observation
+    "staleness",  # min(age / 30, 1): how long ago the view last showed the cell
+    "on_map",  # 1 everywhere on the field (tells a zero-padded convolution where the border is)
+)
+BELIEF_CHANNELS = len(PLANE_NAMES)
+_STALE_SCALE = 30.0
+#: probability mass kept in place for a random walker whose free neighbours are all taken
+_BLOCKED = 1e-3
+#: share of a population's size kept outside the view when the view seems to hold all of it
+#: (a found target counted as unfound): the mass never vanishes, so the support stays exact
+_LEAK = 1e-3
+#: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
+_SLOTS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
+
+
+def uniform_prior(cfg: GridConfig) -> np.ndarray:
+    return np.full((cfg.height, cfg.width), 1.0 / (cfg.width * cfg.height))
+
+
+def _shift(a: np.ndarray, dy: int, dx: int) -> np.ndarray:
+    """out[..., y, x] = a[..., y - dy, x - dx], zero where that falls off the grid."""
+    out = np.zeros_like(a)
+    h, w = a.shape[-2:]
+    ys, yd = (slice(0, h - dy), slice(dy, h)) if dy >= 0 else (slice(-dy, h), slice(0, h + dy))
+    xs, xd = (slice(0, w - dx), slice(dx, w)) if dx >= 0 else (slice(-dx, w), slice(0, w + dx))
+    out[..., yd, xd] = a[..., ys, xs]
+    return out
+
+
+def offmap_table(h: int, w: int) -> np.ndarray:
+    """(h, w, 3, 3) bool: whether view slot (dy, dx) is off the map for an agent at (x, y)."""
+    ys = np.arange(h)[:, None, None, None] + np.arange(-1, 2)[None, None, :, None]
+    xs = np.arange(w)[None, :, None, None] + np.arange(-1, 2)[None, None, None, :]
+    return (ys < 0) | (ys >= h) | (xs < 0) | (xs >= w)
+
+
+def motion_kernel(cfg: GridConfig, a: np.ndarray) -> np.ndarray:
+    """One target move applied to densities a (..., h, w) (see the module docstring)."""
+    if not cfg.moving:
+        return a
+    h, w = a.shape[-2:]
+    ones = np.ones((h, w))
+    # number of in-bounds neighbours per cell
+    nb = sum(_shift(ones, dy, dx) for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)))
+    if cfg.motion == "random_walk":
+        # all 8 tries land off the map (a corner: (2/4)^8), or every free neighbour is taken
+        # (rare; kept as a small floor so that the support stays exact): the target stays
+        stay = ((4 - nb) / 4.0) ** 8 + _BLOCKED
+        share = a * (1.0 - stay) / nb
+        return a * stay + sum(_shift(share, dy, dx) for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)))
+    stay = cfg.herd_deviation / 3.0
+    move = (1.0 - stay) / 4.0
+    out = a * (stay + move * (4 - nb))  # deviation's stay + pushes against the border
+    return out + sum(_shift(a * move, dy, dx) for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)))
+
+
+class BeliefState:
+    """Batched belief over n episodes of one GridConfig, computed from observations only.
+
+    Call update(obs) once per decision, including the first (obs.t == 0). See the module
+    docstring for the model; PLANE_NAMES for the network input."""
+
+    def __init__(self, cfg: GridConfig, n: int, prior: np.ndarray | None = None) -> None:
+        if n < 1:
+            raise ValueError(f"n must be >= 1 (got {n})")
+        h, w = cfg.height, cfg.width
+        if prior is None:
+            prior = uniform_prior(cfg)
+        prior = np.asarray(prior, dtype=np.float64)
+        if prior.shape != (h, w):
+            raise ValueError(f"prior must have shape {(h, w)} for this grid (got {prior.shape})")
+        if not np.all(np.isfinite(prior)) or (prior < 0).any() or prior.sum() <= 0:
+            raise ValueError("prior must be finite, non-negative and not all zero")
+        self.cfg, self.n = cfg, n
+        self.prior = prior / prior.sum()
+        self.rows = np.arange(n)
+        r = float(cfg.n_targets)
+        f32 = np.float32
+        self.visited = np.zeros((n, h, w), f32)
+        self.seen = np.zeros((n, h, w), f32)
+        self.found = np.zeros((n, h, w), f32)
+        self.age = np.zeros((n, h, w), f32)
+        self.position = np.zeros((n, h, w), f32)
+        self.n_found = np.zeros(n, np.float64)
+        self.t = np.full(n, -1, np.int64)
+        #: static: sighted-not-found mass; moving: the whole unfound density
+        self._sighted = np.zeros((n, h, w), f32)
+        if cfg.moving:
+            self._sighted[:] = (r * self.prior).astype(f32)
+        self._offmap = offmap_table(h, w)
+        self.target = self._target()
+
+    # ----------------------------------------------------------------- derived quantities
+    def _pool(self) -> np.ndarray:
+        """Static: the never-sighted targets, R - n_found - sighted, over the unseen cells."""
+        left = self.cfg.n_targets - self.n_found - self._sighted.sum(axis=(1, 2), dtype=np.float64)
+        weight = self.prior[None] * (1.0 - self.seen)
+        tot = weight.sum(axis=(1, 2))
+        scale = np.where(tot > 1e-12, np.maximum(left, 0.0) / np.maximum(tot, 1e-12), 0.0)
+        return (weight * scale[:, None, None]).astype(np.float32)
+
+    def _target(self) -> np.ndarray:
+        if self.cfg.moving:
+            return self._sighted.copy()
+        return self._sighted + self._pool()
+
+    @property
+    def sighted(self) -> np.ndarray:
+        """(n, h, w) static: targets the view has shown that are believed not found yet
+        (moving: the whole unfound density; there is no separate never-sighted pool)."""
+        return self._sighted
+
+    @property
+    def remaining(self) -> np.ndarray:
+        """(n,) believed targets not found yet."""
+        return self.cfg.n_targets - self.n_found
+
+    @property
+    def unsighted(self) -> np.ndarray:
+        """(n,) static: believed targets never shown by the view (0 means all are sighted)."""
+        return np.maximum(self.remaining - self._sighted.sum(axis=(1, 2), dtype=np.float64), 0.0)
+
+    # ----------------------------------------------------------------------- the update
+    def _position(self, obs) -> np.ndarray:
+        h, w = self.cfg.height, self.cfg.width
+        if obs.position_prob is None:
+            p = np.zeros((self.n, h, w), np.float32)
+            pos = np.asarray(obs.positions)
+            p[self.rows, pos[:, 1], pos[:, 0]] = 1.0
+            return p
+        p = np.asarray(obs.position_prob, dtype=np.float32)
+        if p.shape != (self.n, h, w):
+            raise ValueError(f"position_prob must be {(self.n, h, w)} (got {p.shape})")
+        # keep the cells whose off-map pattern matches the view's off-map channel
+        off = np.asarray(obs.views)[:, 1].astype(bool)  # (n, 3, 3)
+        agree = np.all(self._offmap[None] == off[:, None, None], axis=(3, 4))  # (n, h, w)
+        q = p * agree
+        tot = q.sum(axis=(1, 2), keepdims=True)
+        q = np.where(tot > 1e-9, q / np.maximum(tot, 1e-9), p / np.maximum(p.sum(axis=(1, 2), keepdims=True), 1e-9))
+        return q.astype(np.float32)
+
+    def update(self, obs) -> None:
+        """Fold one decision's observation (views, positions, t, active, position_prob) in."""
+        cfg = self.cfg
+        t = np.asarray(obs.t, dtype=np.int64)
+        views = np.asarray(obs.views)
+        if views.shape[1:] != (3, 3, 3) or len(views) != self.n:
+            raise ValueError(f"views must be ({self.n}, 3, 3, 3) grid views (got {views.shape})")
+        first = self.t < 0
+        prev = np.where(first, t, self.t)
+        dt = np.maximum(t - prev, 0)
+        if cfg.moving:
+            # target moves happen on transitions s -> s + 1 with s % period == 0, s in [prev, t)
+            per = cfg.target_period
+            moves = (t + per - 1) // per - (prev + per - 1) // per
+            for k in range(int(moves.max(initial=0))):
+                rows = moves > k
+                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows])
+                self.found[rows] = motion_kernel(cfg, self.found[rows])
+        self.age += dt[:, None, None].astype(np.float32)
+        p = self._position(obs)
+        self.position = p
+
+        tgt_slots = views[:, 0].astype(np.float32)  # (n, 3, 3)
+        u = self._target() if not cfg.moving else self._sighted
+        f = self.found
+        tot = u + f
+        ratio_u = np.where(tot > 1e-9, u / np.maximum(tot, 1e-9), 1.0)
+        inview = np.zeros_like(p)
+        det_u = np.zeros_like(p)  # unfound targets shown outside the agent's cell
+        det_f = np.zeros_like(p)  # found targets shown
+        for dy, dx in _SLOTS:
+            ps = _shift(p, dy, dx)  # P(cell shown in slot (dy, dx))
+            inview += ps
+            shown = ps * tgt_slots[:, dy + 1, dx + 1, None, None]
+            if dy == 0 and dx == 0:
+                det_f += shown
+                newly = (shown * ratio_u).sum(axis=(1, 2), dtype=np.float64)
+            else:
+                det_u += shown * ratio_u
+                det_f += shown * (1.0 - ratio_u)
+        inview = np.minimum(inview, 1.0)
+        keep = 1.0 - inview
+        # an episode still running has at least one target left (the mission ends with the last)
+        cap = np.where(np.asarray(obs.active, dtype=bool), cfg.n_targets - 1, cfg.n_targets)
+        self.n_found = np.minimum(self.n_found + newly, cap)
+        if cfg.moving:
+            self._sighted = self._rescale(self._sighted * keep, det_u, self.remaining)
+            self.found = self._rescale(self.found * keep, det_f, self.n_found)
+        else:
+            # under GPS noise one target shown from several possible positions spreads over
+            # several cells; the sizes stay capped by what is known (exact positions never cap)
+            self._sighted = self._cap(self._sighted * keep + det_u, self.remaining)
+            self.found = self._cap(self.found * keep + det_f, self.n_found)
+        self.visited = 1.0 - (1.0 - self.visited) * (1.0 - p)
+        self.seen = 1.0 - (1.0 - self.seen) * keep
+        self.age *= keep
+        self.t = t.copy()
+        self.target = self._target()
+
+    @staticmethod
+    def _cap(a: np.ndarray, total: np.ndarray) -> np.ndarray:
+        have = a.sum(axis=(1, 2), dtype=np.float64)
+        scale = np.where(have > total + 1e-6, total / np.maximum(have, 1e-9), 1.0)
+        return (a * scale[:, None, None]).astype(np.float32)
+
+    @staticmethod
+    def _rescale(rest: np.ndarray, det: np.ndarray, total: np.ndarray) -> np.ndarray:
+        """rest + det with rest scaled so the whole sums to total (rest unchanged if empty)."""
+        have = rest.sum(axis=(1, 2), dtype=np.float64)
+        want = np.maximum(total - det.sum(axis=(1, 2), dtype=np.float64), _LEAK * total)
+        scale = np.where(have > 1e-9, want / np.maximum(have, 1e-9), 1.0)
+        return (rest * scale[:, None, None] + det).astype(np.float32)
+
+    # ------------------------------------------------------------------------- outputs
+    def planes(self) -> np.ndarray:
+        """(n, BELIEF_CHANNELS, h, w) float32 network input; channels as PLANE_NAMES."""
+        n, (h, w) = self.n, (self.cfg.height, self.cfg.width)
+        out = np.empty((n, BELIEF_CHANNELS, h, w), np.float32)
+        out[:, 0] = self.visited
+        out[:, 1] = self.seen
+        out[:, 2] = self.target
+        out[:, 3] = self.found
+        out[:, 4] = self.position
+        out[:, 5] = (self.prior * self.cfg.n_targets)[None]
+        out[:, 6] = np.where(self.seen > 0, np.minimum(self.age / _STALE_SCALE, 1.0), 1.0)
+        out[:, 7] = 1.0
+        return out
