@@ -1,14 +1,26 @@
 """Cascaded multicopter control, as PX4's and ArduPilot's: position -> velocity ->
 acceleration/thrust vector -> attitude -> body rates -> torques. All in the ENU world frame and
-the FLU body frame; gains chosen for the 1.5 kg airframe in quadrotor.py."""
+the FLU body frame; gains chosen for the 1.5 kg airframe in quadrotor.py.
+
+Two implementations of the same maths (tests/sim/vehicle/reference_quadrotor.py keeps the
+original numpy one and the tests fly all three through the same setpoints):
+- `CascadedController`: one vehicle, plain floats and the math module. At 240 Hz the
+  controller runs on 3-vectors, where every numpy call costs more than the arithmetic it does
+  (np.cross alone took ten times PyBullet's own step; docs/vehicle.md has the profile).
+- `BatchController`: N vehicles at once, numpy over the vehicle axis (the fleet in fleet.py).
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 G = 9.81
+
+Vec3 = tuple[float, float, float]
 
 
 @dataclass
@@ -26,58 +38,159 @@ class Gains:
     max_yaw_torque: float = 0.05
 
 
-def _rot_from_z_yaw(z_b: np.ndarray, yaw: float) -> np.ndarray:
-    x_c = np.array([np.cos(yaw), np.sin(yaw), 0.0])
-    y_b = np.cross(z_b, x_c)
-    n = np.linalg.norm(y_b)
-    y_b = y_b / n if n > 1e-6 else np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-    x_b = np.cross(y_b, z_b)
-    return np.column_stack([x_b, y_b, z_b])
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
 
 
 class CascadedController:
+    """One vehicle. Rotation matrices are PyBullet's getMatrixFromQuaternion: 9 floats, row
+    major, body to world."""
+
     def __init__(self, mass: float, inertia: np.ndarray, gains: Gains | None = None) -> None:
-        self.m, self.J, self.g = mass, np.asarray(inertia, dtype=float), gains or Gains()
-        self.vel_int = np.zeros(3)
+        self.m, self.J, self.g = float(mass), np.asarray(inertia, dtype=float), gains or Gains()
+        if self.J.shape != (3, 3):
+            raise ValueError(f"inertia must be 3 x 3 (got shape {self.J.shape})")
+        self._j = tuple(float(x) for x in self.J.ravel())
+        self.vel_int = [0.0, 0.0, 0.0]
 
     def reset(self) -> None:
-        self.vel_int[:] = 0.0
+        self.vel_int = [0.0, 0.0, 0.0]
 
-    def velocity_setpoint(self, pos: np.ndarray, target: np.ndarray, speed: float | None) -> np.ndarray:
-        v = self.g.pos_p * (target - pos)
-        vmax = min(self.g.max_speed, speed or self.g.max_speed)
-        h = np.linalg.norm(v[:2])
+    def velocity_setpoint(self, pos: Sequence[float], target: Sequence[float], speed: float | None) -> Vec3:
+        g = self.g
+        vx, vy, vz = g.pos_p * (target[0] - pos[0]), g.pos_p * (target[1] - pos[1]), g.pos_p * (target[2] - pos[2])
+        vmax = min(g.max_speed, speed or g.max_speed)
+        h = math.hypot(vx, vy)
         if h > vmax:
-            v[:2] *= vmax / h
-        v[2] = np.clip(v[2], -self.g.max_descent, self.g.max_climb)
+            vx, vy = vx * (vmax / h), vy * (vmax / h)
+        return vx, vy, _clip(vz, -g.max_descent, g.max_climb)
+
+    def thrust_and_torque(
+        self, rot: Sequence[float], vel: Sequence[float], omega_body: Sequence[float], vel_sp: Sequence[float],
+        yaw_sp: float, dt: float,
+    ) -> tuple[float, Vec3]:
+        """Collective thrust (N) and body torques (N m) tracking a velocity and a yaw."""
+        g = self.g
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
+        ex, ey, ez = vel_sp[0] - vel[0], vel_sp[1] - vel[1], vel_sp[2] - vel[2]
+        # integrate only near the setpoint, so take-off and long legs do not wind it up
+        ix, iy, iz = self.vel_int
+        # (inline clips: a function call per clip costs as much as the rest of the line)
+        if -0.5 < ex < 0.5:
+            ix += ex * dt
+            ix = -2.0 if ix < -2.0 else 2.0 if ix > 2.0 else ix
+        if -0.5 < ey < 0.5:
+            iy += ey * dt
+            iy = -2.0 if iy < -2.0 else 2.0 if iy > 2.0 else iy
+        if -0.5 < ez < 0.5:
+            iz += ez * dt
+            iz = -2.0 if iz < -2.0 else 2.0 if iz > 2.0 else iz
+        self.vel_int = [ix, iy, iz]
+        ax, ay = g.vel_p * ex + g.vel_i * ix, g.vel_p * ey + g.vel_i * iy
+        # limit tilt: horizontal acceleration bounded by tan(max_tilt) * (g + a_z)
+        az = _clip(g.vel_p * ez + g.vel_i * iz, -0.7 * G, 1.0 * G)
+        hmax = math.tan(g.max_tilt) * (G + az)
+        h = math.hypot(ax, ay)
+        if h > hmax:
+            ax, ay = ax * (hmax / h), ay * (hmax / h)
+        fx, fy, fz = self.m * ax, self.m * ay, self.m * (az + G)
+        thrust = fx * r02 + fy * r12 + fz * r22
+        n = math.sqrt(fx * fx + fy * fy + fz * fz)
+        zx, zy, zz = fx / n, fy / n, fz / n
+        # desired attitude: body z along the force, nose towards the yaw (x_c), y = z x x_c
+        c, s = math.cos(yaw_sp), math.sin(yaw_sp)
+        yx, yy, yz = -zz * s, zz * c, zx * s - zy * c
+        n = math.sqrt(yx * yx + yy * yy + yz * yz)
+        if n > 1e-6:
+            yx, yy, yz = yx / n, yy / n, yz / n
+        else:
+            yx, yy, yz = -s, c, 0.0
+        xx, xy, xz = yy * zz - yz * zy, yz * zx - yx * zz, yx * zy - yy * zx
+        # attitude error: vee(R_des^T R - R^T R_des) / 2, with (A^T B)_ij = col_i(A) . col_j(B)
+        e21 = 0.5 * ((zx * r01 + zy * r11 + zz * r21) - (r02 * yx + r12 * yy + r22 * yz))
+        e02 = 0.5 * ((xx * r02 + xy * r12 + xz * r22) - (r00 * zx + r10 * zy + r20 * zz))
+        e10 = 0.5 * ((yx * r00 + yy * r10 + yz * r20) - (r01 * xx + r11 * xy + r21 * xz))
+        kp, kr = g.att_p, g.rate_p
+        wx, wy, wz = omega_body
+        qx = kr * (-kp * e21 - wx)
+        qy = kr * (-kp * e02 - wy)
+        qz = kr * (_clip(-kp * e10, -g.max_yaw_rate, g.max_yaw_rate) - wz)
+        j00, j01, j02, j10, j11, j12, j20, j21, j22 = self._j
+        hx, hy, hz = j00 * wx + j01 * wy + j02 * wz, j10 * wx + j11 * wy + j12 * wz, j20 * wx + j21 * wy + j22 * wz
+        tx = j00 * qx + j01 * qy + j02 * qz + (wy * hz - wz * hy)
+        ty = j10 * qx + j11 * qy + j12 * qz + (wz * hx - wx * hz)
+        tz = j20 * qx + j21 * qy + j22 * qz + (wx * hy - wy * hx)
+        # yaw authority comes from differential rotor drag: never let it starve thrust or tilt
+        tz = _clip(tz, -g.max_yaw_torque, g.max_yaw_torque)
+        return max(thrust, 0.0), (tx, ty, tz)
+
+
+class BatchController:
+    """N vehicles with the same airframe: every argument carries a leading vehicle axis.
+    Rotation matrices (N, 3, 3) body to world."""
+
+    def __init__(self, n: int, mass: float, inertia: np.ndarray, gains: Gains | None = None) -> None:
+        if n < 1:
+            raise ValueError(f"a batch needs at least one vehicle (got {n})")
+        self.n, self.m, self.g = n, float(mass), gains or Gains()
+        self.J = np.asarray(inertia, dtype=float)
+        if self.J.shape != (3, 3):
+            raise ValueError(f"inertia must be 3 x 3 (got shape {self.J.shape})")
+        self.vel_int = np.zeros((n, 3))
+
+    def reset(self, which: np.ndarray | slice | int = slice(None)) -> None:
+        self.vel_int[which] = 0.0
+
+    def velocity_setpoint(self, pos: np.ndarray, target: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        """speed (N,): per-vehicle limit, NaN or <= 0 for the default."""
+        g = self.g
+        v = g.pos_p * (target - pos)
+        vmax = np.where(np.isfinite(speed) & (speed > 0), np.minimum(speed, g.max_speed), g.max_speed)
+        h = np.hypot(v[:, 0], v[:, 1])
+        scale = np.where(h > vmax, vmax / np.maximum(h, 1e-300), 1.0)
+        v[:, :2] *= scale[:, None]
+        np.clip(v[:, 2], -g.max_descent, g.max_climb, out=v[:, 2])
         return v
 
     def thrust_and_torque(
-        self, rot: np.ndarray, vel: np.ndarray, omega_body: np.ndarray, vel_sp: np.ndarray, yaw_sp: float, dt: float
-    ) -> tuple[float, np.ndarray]:
-        """Collective thrust (N) and body torques (N m) tracking a velocity and a yaw."""
+        self, rot: np.ndarray, vel: np.ndarray, omega_body: np.ndarray, vel_sp: np.ndarray, yaw_sp: np.ndarray,
+        dt: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) thrusts and (N, 3) body torques."""
         g = self.g
         err = vel_sp - vel
-        # integrate only near the setpoint, so take-off and long legs do not wind it up
-        near = np.abs(err) < 0.5
-        self.vel_int = np.clip(self.vel_int + np.where(near, err, 0.0) * dt, -2.0, 2.0)
+        self.vel_int = np.clip(self.vel_int + np.where(np.abs(err) < 0.5, err, 0.0) * dt, -2.0, 2.0)
         acc = g.vel_p * err + g.vel_i * self.vel_int
-        # limit tilt: horizontal acceleration bounded by tan(max_tilt) * (g + a_z)
-        az = np.clip(acc[2], -0.7 * G, 1.0 * G)
-        hmax = np.tan(g.max_tilt) * (G + az)
-        h = np.linalg.norm(acc[:2])
-        if h > hmax:
-            acc[:2] *= hmax / h
-        f = self.m * np.array([acc[0], acc[1], az + G])
-        z_des = f / np.linalg.norm(f)
-        thrust = float(f @ rot[:, 2])
-        r_des = _rot_from_z_yaw(z_des, yaw_sp)
-        e = 0.5 * (r_des.T @ rot - rot.T @ r_des)
-        att_err = -np.array([e[2, 1], e[0, 2], e[1, 0]])
-        rate_sp = g.att_p * att_err
-        rate_sp[2] = np.clip(rate_sp[2], -g.max_yaw_rate, g.max_yaw_rate)
-        rate_err = rate_sp - omega_body
-        torque = self.J @ (g.rate_p * rate_err) + np.cross(omega_body, self.J @ omega_body)
-        # yaw authority comes from differential rotor drag: never let it starve thrust or tilt
-        torque[2] = np.clip(torque[2], -g.max_yaw_torque, g.max_yaw_torque)
-        return max(thrust, 0.0), torque
+        az = np.clip(acc[:, 2], -0.7 * G, 1.0 * G)
+        hmax = math.tan(g.max_tilt) * (G + az)
+        h = np.hypot(acc[:, 0], acc[:, 1])
+        acc[:, :2] *= np.where(h > hmax, hmax / np.maximum(h, 1e-300), 1.0)[:, None]
+        acc[:, 2] = az + G
+        f = self.m * acc
+        thrust = np.einsum("ni,ni->n", f, rot[:, :, 2])
+        z = f / np.sqrt(np.einsum("ni,ni->n", f, f))[:, None]
+        c, s = np.cos(yaw_sp), np.sin(yaw_sp)
+        y = np.stack([-z[:, 2] * s, z[:, 2] * c, z[:, 0] * s - z[:, 1] * c], axis=1)
+        n = np.sqrt(np.einsum("ni,ni->n", y, y))
+        ok = n > 1e-6
+        y = np.where(ok[:, None], y / np.where(ok, n, 1.0)[:, None],
+                     np.stack([-s, c, np.zeros_like(s)], axis=1))
+        x = np.stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
+                      y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]], axis=1)
+        r0, r1, r2 = rot[:, :, 0], rot[:, :, 1], rot[:, :, 2]
+
+        def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            return np.einsum("ni,ni->n", a, b)
+
+        e21 = 0.5 * (dot(z, r1) - dot(r2, y))
+        e02 = 0.5 * (dot(x, r2) - dot(r0, z))
+        e10 = 0.5 * (dot(y, r0) - dot(r1, x))
+        rate_sp = -g.att_p * np.stack([e21, e02, e10], axis=1)
+        np.clip(rate_sp[:, 2], -g.max_yaw_rate, g.max_yaw_rate, out=rate_sp[:, 2])
+        w = omega_body
+        hw = w @ self.J.T
+        gyro = np.stack([w[:, 1] * hw[:, 2] - w[:, 2] * hw[:, 1], w[:, 2] * hw[:, 0] - w[:, 0] * hw[:, 2],
+                         w[:, 0] * hw[:, 1] - w[:, 1] * hw[:, 0]], axis=1)
+        torque = (g.rate_p * (rate_sp - w)) @ self.J.T + gyro
+        np.clip(torque[:, 2], -g.max_yaw_torque, g.max_yaw_torque, out=torque[:, 2])
+        return np.maximum(thrust, 0.0), torque

@@ -8,16 +8,18 @@ the controller at the same rate. Implements the FlightModel contract (sim/vehicl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
 
 from .controller import CascadedController, Gains
-from .frames import enu_to_ned, ned_to_enu, ned_yaw_to_enu, rpy_flu_to_frd
+from .frames import enu_yaw_to_ned, ned_to_enu, ned_yaw_to_enu
 from .model import VehicleState
 
 PHYSICS_HZ = 240
+_WORLD_FRAME = p.WORLD_FRAME
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,9 @@ class PyBulletQuadrotor:
         p.setTimeStep(1.0 / PHYSICS_HZ, physicsClientId=self.cid)
         ground = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=self.cid)
         self.ground = p.createMultiBody(0, ground, physicsClientId=self.cid)
+        # physics only: cameras see the field's grass (field.py), which lies over this plane;
+        # an invisible plane halves the software renderer's time and leaves images unchanged
+        p.changeVisualShape(self.ground, -1, rgbaColor=[1, 1, 1, 0], physicsClientId=self.cid)
         half = [s / 2 for s in self.af.size]
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.cid)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.2, 0.2, 0.25, 1], physicsClientId=self.cid)
@@ -60,24 +65,33 @@ class PyBulletQuadrotor:
         self.ctrl = CascadedController(self.af.mass, self.J, gains)
         d = self.af.arm / np.sqrt(2)
         # rotor positions (FLU) and spin directions (+1 CCW seen from above gives -z reaction)
-        self.rotors = np.array([[d, -d, 0], [-d, d, 0], [d, d, 0], [-d, -d, 0]], dtype=float)
-        self.spin = np.array([1, 1, -1, -1], dtype=float)
+        rotors = np.array([[d, -d, 0], [-d, d, 0], [d, d, 0], [-d, -d, 0]], dtype=float)
+        spin = np.array([1, 1, -1, -1], dtype=float)
+        self.rotors = tuple(tuple(float(x) for x in r) for r in rotors)
+        self.spin = tuple(float(x) for x in spin)
         alloc = np.vstack([
             np.ones(4),
-            self.rotors[:, 1],  # roll torque = y * F
-            -self.rotors[:, 0],  # pitch torque = -x * F
-            self.spin * self.af.km / self.af.kf,
+            rotors[:, 1],  # roll torque = y * F
+            -rotors[:, 0],  # pitch torque = -x * F
+            spin * self.af.km / self.af.kf,
         ])
-        self._alloc_inv = np.linalg.inv(alloc)
-        self.omega = np.zeros(4)
+        self.alloc_inv = np.linalg.inv(alloc)
+        # per rotor: kf y, -kf x (roll and pitch torque per (rad/s)^2) and spin km (yaw)
+        self._rotor_coefs = tuple((self.af.kf * float(r[1]), -self.af.kf * float(r[0]), sp * self.af.km)
+                                  for r, sp in zip(rotors, spin, strict=True))
+        self._alloc_rows = tuple(tuple(float(x) for x in row) for row in self.alloc_inv)
+        self._h = 1.0 / PHYSICS_HZ
+        self._lag = min(1.0, self._h / self.af.motor_tau)
+        self._idle_cmd = [0.15 * self.af.max_omega] * 4
+        self._stop_cmd = [0.0] * 4
+        self.omega = [0.0] * 4  # rotor speeds, rad/s
         self._s = VehicleState()
         self._mode = "idle"  # idle | position | velocity | land
-        self._target_enu = start.copy()
-        self._vel_enu = np.zeros(3)
+        self._target_enu = tuple(float(x) for x in start)
+        self._vel_enu = (0.0, 0.0, 0.0)
         self._speed: float | None = None
         self._yaw_enu = np.pi / 2  # facing north
         self.time = 0.0
-        self.motor_thrusts = np.zeros(4)
         self._update_state()
 
     # -- FlightModel ---------------------------------------------------------------------
@@ -93,7 +107,7 @@ class PyBulletQuadrotor:
         self._s.armed = True
         self.ctrl.reset()
         pos, _ = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
-        self._target_enu = np.array(pos)
+        self._target_enu = tuple(pos)
         self._mode = "idle"
         return True
 
@@ -102,18 +116,18 @@ class PyBulletQuadrotor:
             return False
         self._s.armed = False
         self._mode = "idle"
-        self.omega[:] = 0.0
+        self.omega = [0.0] * 4
         return True
 
     def set_position_target(self, position_ned, yaw=None, speed=None) -> None:
-        self._target_enu = ned_to_enu(np.asarray(position_ned, dtype=float))
+        self._target_enu = tuple(float(x) for x in ned_to_enu(np.asarray(position_ned, dtype=float)))
         if yaw is not None and np.isfinite(yaw):
             self._yaw_enu = ned_yaw_to_enu(float(yaw))
         self._speed = speed
         self._mode = "position"
 
     def set_velocity_target(self, velocity_ned, yaw_rate: float = 0.0) -> None:
-        self._vel_enu = ned_to_enu(np.asarray(velocity_ned, dtype=float))
+        self._vel_enu = tuple(float(x) for x in ned_to_enu(np.asarray(velocity_ned, dtype=float)))
         self._mode = "velocity"
 
     def land(self) -> None:
@@ -130,58 +144,83 @@ class PyBulletQuadrotor:
 
     # -- physics -------------------------------------------------------------------------
     def _substep(self) -> None:
-        h = 1.0 / PHYSICS_HZ
-        pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
-        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
-        pos, lin, ang = np.array(pos), np.array(lin), np.array(ang)
-        rot = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
-        omega_b = rot.T @ ang
-        if self._s.armed and self._mode != "idle":
+        """One 240 Hz step in plain floats: per-call numpy overhead on 3-vectors cost ten times
+        the physics (docs/vehicle.md). The four rotor forces and the drag are summed into one
+        force at the centre of mass and one torque, as Bullet itself sums them."""
+        h = self._h
+        cid, body = self.cid, self.body
+        # (positional client ids: keyword parsing costs as much as a getter)
+        pos, quat = p.getBasePositionAndOrientation(body, cid)
+        lin, ang = p.getBaseVelocity(body, cid)
+        rot = p.getMatrixFromQuaternion(quat)
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
+        af = self.af
+        s = self._s
+        w0, w1, w2, w3 = self.omega
+        if s.armed and self._mode != "idle":
+            wb = (r00 * ang[0] + r10 * ang[1] + r20 * ang[2], r01 * ang[0] + r11 * ang[1] + r21 * ang[2],
+                  r02 * ang[0] + r12 * ang[1] + r22 * ang[2])
             if self._mode == "position":
                 vel_sp = self.ctrl.velocity_setpoint(pos, self._target_enu, self._speed)
             elif self._mode == "velocity":
                 vel_sp = self._vel_enu
             else:  # land: hold horizontal position, descend
-                vel_sp = np.array([0.0, 0.0, -0.7 if pos[2] > 1.0 else -0.4])
-            thrust, torque = self.ctrl.thrust_and_torque(rot, lin, omega_b, vel_sp, self._yaw_enu, h)
-            f = self._alloc_inv @ np.array([thrust, *torque])
-            w_cmd = np.sqrt(np.clip(f, 0.0, None) / self.af.kf)
-        elif self._s.armed:
-            w_cmd = np.full(4, 0.15 * self.af.max_omega)  # idle spin on the ground
+                vel_sp = (0.0, 0.0, -0.7 if pos[2] > 1.0 else -0.4)
+            thrust, (tx, ty, tz) = self.ctrl.thrust_and_torque(rot, lin, wb, vel_sp, self._yaw_enu, h)
+            kf, wmax = af.kf, af.max_omega
+            w_cmd = []
+            for a0, a1, a2, a3 in self._alloc_rows:
+                f = a0 * thrust + a1 * tx + a2 * ty + a3 * tz
+                w_cmd.append(min(math.sqrt(f / kf), wmax) if f > 0.0 else 0.0)
+        elif s.armed:
+            w_cmd = self._idle_cmd  # idle spin on the ground
         else:
-            w_cmd = np.zeros(4)
-        w_cmd = np.clip(w_cmd, 0.0, self.af.max_omega)
-        self.omega += (w_cmd - self.omega) * min(1.0, h / self.af.motor_tau)
-        thrusts = self.af.kf * self.omega**2
-        self.motor_thrusts = thrusts
-        for r, f in zip(self.rotors, thrusts, strict=True):
-            p.applyExternalForce(self.body, -1, [0, 0, float(f)], r.tolist(), p.LINK_FRAME, physicsClientId=self.cid)
-        yaw_torque = float(np.sum(self.spin * self.af.km * self.omega**2))
-        world_torque = rot @ np.array([0.0, 0.0, yaw_torque])
-        p.applyExternalTorque(self.body, -1, world_torque.tolist(), p.WORLD_FRAME, physicsClientId=self.cid)
-        drag = -self.af.drag * lin
-        p.applyExternalForce(self.body, -1, drag.tolist(), pos.tolist(), p.WORLD_FRAME, physicsClientId=self.cid)
-        p.stepSimulation(physicsClientId=self.cid)
+            w_cmd = self._stop_cmd
+        c0, c1, c2, c3 = w_cmd
+        k = self._lag
+        w0, w1, w2, w3 = w0 + (c0 - w0) * k, w1 + (c1 - w1) * k, w2 + (c2 - w2) * k, w3 + (c3 - w3) * k
+        self.omega = [w0, w1, w2, w3]
+        q0, q1, q2, q3 = w0 * w0, w1 * w1, w2 * w2, w3 * w3
+        # rotor i pushes kf q_i along body z at (x_i, y_i): torque (y_i, -x_i, 0) kf q_i; its drag
+        # turns the body by spin_i km q_i
+        (a0, b0, s0), (a1, b1, s1), (a2, b2, s2), (a3, b3, s3) = self._rotor_coefs
+        total = af.kf * (q0 + q1 + q2 + q3)
+        bx = a0 * q0 + a1 * q1 + a2 * q2 + a3 * q3
+        by = b0 * q0 + b1 * q1 + b2 * q2 + b3 * q3
+        bz = s0 * q0 + s1 * q1 + s2 * q2 + s3 * q3
+        d = af.drag
+        force = (total * r02 - d * lin[0], total * r12 - d * lin[1], total * r22 - d * lin[2])
+        torque = (r00 * bx + r01 * by + r02 * bz, r10 * bx + r11 * by + r12 * bz, r20 * bx + r21 * by + r22 * bz)
+        p.applyExternalForce(body, -1, force, pos, _WORLD_FRAME, cid)
+        p.applyExternalTorque(body, -1, torque, _WORLD_FRAME, cid)
+        p.stepSimulation(cid)
         self.time += h
-        if self._mode == "land" and self._s.armed:
-            if pos[2] < self.af.size[2] / 2 + 0.03 and abs(lin[2]) < 0.2:
+        if self._mode == "land" and s.armed:
+            if pos[2] < af.size[2] / 2 + 0.03 and abs(lin[2]) < 0.2:
                 self.disarm(force=True)
 
     def _update_state(self) -> None:
-        pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
-        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
-        rot = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
+        pos, quat = p.getBasePositionAndOrientation(self.body, self.cid)
+        lin, ang = p.getBaseVelocity(self.body, self.cid)
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = p.getMatrixFromQuaternion(quat)
+        roll, pitch, yaw = p.getEulerFromQuaternion(quat)
         s = self._s
         s.time_s = self.time
         ground_z = self.af.size[2] / 2
-        s.position_ned = enu_to_ned(np.array(pos) - np.array([0, 0, ground_z]))
-        s.velocity_ned = enu_to_ned(np.array(lin))
-        s.attitude_rpy = rpy_flu_to_frd(np.array(p.getEulerFromQuaternion(quat)))
-        wb = rot.T @ np.array(ang)
-        s.body_rates = np.array([wb[0], -wb[1], -wb[2]])
+        s.position_ned = np.array([pos[1], pos[0], -(pos[2] - ground_z)])
+        s.velocity_ned = np.array([lin[1], lin[0], -lin[2]])
+        s.attitude_rpy = np.array([roll, -pitch, enu_yaw_to_ned(yaw)])
+        wx = r00 * ang[0] + r10 * ang[1] + r20 * ang[2]
+        wy = r01 * ang[0] + r11 * ang[1] + r21 * ang[2]
+        wz = r02 * ang[0] + r12 * ang[1] + r22 * ang[2]
+        s.body_rates = np.array([wx, -wy, -wz])  # FLU -> FRD
         s.landed = pos[2] < ground_z + 0.05 and abs(lin[2]) < 0.3
-        s.battery_remaining = max(0.0, s.battery_remaining - 0.0)
         s.battery_voltage = 14.0 + 2.8 * s.battery_remaining
+
+    @property
+    def motor_thrusts(self) -> np.ndarray:
+        """(4,) rotor thrusts now, N."""
+        return self.af.kf * np.square(self.omega)
 
     @property
     def enu_position(self) -> np.ndarray:
