@@ -1,5 +1,6 @@
 """The SITL vehicle's MAVLink side (PX4 flavour) and the lock-step runner."""
 
+from .fleet import SitlFleet
 from .geofence import Geofence
 from .images import encode_png, frame_messages
 from .modes import px4_custom_mode, px4_mode_name
@@ -9,6 +10,6 @@ from .udp import LinkStats, UdpLink
 from .vehicle import MavlinkVehicle
 
 __all__ = [
-    "Geofence", "LinkStats", "MavlinkVehicle", "Sitl", "SitlConfig", "TlogWriter", "UdpLink",
+    "Geofence", "LinkStats", "MavlinkVehicle", "Sitl", "SitlConfig", "SitlFleet", "TlogWriter", "UdpLink",
     "encode_png", "frame_messages", "px4_custom_mode", "px4_mode_name",
 ]

@@ -25,6 +25,7 @@ from provenance import stamp
 from sim.gridworld import BatchGridWorld, GridConfig, cell_to_ned, sample_episodes
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig, GpsModel
+from sim.vehicle.model import FlightModel
 
 from .geofence import Geofence
 from .tlog import TlogWriter
@@ -106,7 +107,9 @@ def _or(value: int | None, default: int) -> int:
 class Sitl:
     """Build with a config, then `start()` (background thread) or `run()` (foreground)."""
 
-    def __init__(self, cfg: SitlConfig) -> None:
+    def __init__(self, cfg: SitlConfig, model: FlightModel | None = None) -> None:
+        """model: a flight model stepped by someone else (a fleet member, sim/mavlink/fleet.py);
+        None builds and steps this vehicle's own, as cfg.physics says."""
         self.cfg = cfg
         self.episode = sample_episodes(cfg.grid, 1, cfg.episode_seed)
         start_cell = self.episode.agent[0]
@@ -117,7 +120,11 @@ class Sitl:
         self.field_origin = field_home
         self.spawn_ne = spawn_ne
         self._field = None
-        if cfg.physics == "pybullet":
+        self._scene: int | None = None  # a render-only PyBullet world, for a fleet member's camera
+        self._own_model = model is None
+        if model is not None:
+            self.model = model
+        elif cfg.physics == "pybullet":
             from sim.vehicle.quadrotor import PyBulletQuadrotor
 
             self.model = PyBulletQuadrotor()
@@ -130,7 +137,12 @@ class Sitl:
             from sim.vehicle.camera import DownCamera
             from sim.vehicle.field import Field
 
-            cid = self.model.cid
+            if self._own_model:
+                cid = self.model.cid
+            else:  # the fleet's world holds every vehicle; each camera sees its own field
+                import pybullet
+
+                cid = self._scene = pybullet.connect(pybullet.DIRECT)
             # the PyBullet world is centred on the spawn point: the field is shifted to match
             self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed,
                                 origin=self.episode.agent[0])
@@ -190,6 +202,16 @@ class Sitl:
         self.t += TICK_S
         self.vehicle.tick(self.t)
 
+    def tick(self, t: float) -> None:
+        """The MAVLink side's tick after someone else stepped the model to t (fleets); a
+        failing tick is recorded and the vehicle stays on the link."""
+        self.t = t
+        try:
+            self.vehicle.tick(t)
+        except Exception:
+            self.errors.append(traceback.format_exc())
+            log.exception("SITL %d tick failed at t=%.2f", self.cfg.instance, t)
+
     def run(self, duration: float | None = None) -> None:
         wall0 = time.monotonic()
         while not self._stop.is_set() and (duration is None or self.t < duration):
@@ -226,7 +248,14 @@ class Sitl:
             link.close()
         if self.tlog:
             self.tlog.close()
-        self.model.close()
+        if self._own_model:
+            self.model.close()
+        if self._scene is not None:
+            import pybullet
+
+            if pybullet.isConnected(self._scene):
+                pybullet.disconnect(self._scene)
+            self._scene = None
 
     def __enter__(self) -> Sitl:
         return self.start()

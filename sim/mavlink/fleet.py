@@ -1,0 +1,108 @@
+"""Many SITL vehicles in one process and one thread (`uavsearch sitl --count N`).
+
+Each vehicle is a full `Sitl` (its own MAVLink system id, PX4 SITL's ports for its instance,
+GPS, field and camera, tlog), but the airframes are members of one fleet (sim/vehicle/fleet.py):
+one physics step and one vectorised controller for all, then every vehicle's MAVLink tick. One
+loop paces the lot at the speed-up and answers any vehicle's messages as they arrive.
+Telemetry streams are each vehicle's own, paced as a lone vehicle paces them.
+"""
+
+from __future__ import annotations
+
+import logging
+import select
+import threading
+import time
+import traceback
+from collections.abc import Sequence
+
+from sim.vehicle.fleet import KinematicFleet, QuadrotorFleet
+
+from .sitl import TICK_S, Sitl, SitlConfig
+
+log = logging.getLogger(__name__)
+
+
+class SitlFleet:
+    """Build with one SitlConfig per vehicle (same physics and speed-up), then `start()` or
+    `run()`; `stop()` closes every vehicle."""
+
+    def __init__(self, cfgs: Sequence[SitlConfig]) -> None:
+        if not cfgs:
+            raise ValueError("a fleet needs at least one vehicle config")
+        kinds = {(c.physics, c.speedup) for c in cfgs}
+        if len(kinds) != 1:
+            raise ValueError(f"every vehicle of a fleet runs the same physics and speed-up (got {sorted(kinds)})")
+        ids = [c.sysid for c in cfgs]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"fleet vehicles need distinct MAVLink system ids (got {ids})")
+        self.physics, self.speedup = next(iter(kinds))
+        n = len(cfgs)
+        self.world = QuadrotorFleet(n) if self.physics == "pybullet" else KinematicFleet(n)
+        self.sitls: list[Sitl] = []
+        try:
+            for cfg, member in zip(cfgs, self.world.members, strict=True):
+                self.sitls.append(Sitl(cfg, model=member))
+        except Exception:
+            self._close()
+            raise
+        self._owner = {link.sock: s for s in self.sitls for link in s.vehicle.links}
+        self.t = 0.0
+        self.errors: list[str] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def __len__(self) -> int:
+        return len(self.sitls)
+
+    def __getitem__(self, i: int) -> Sitl:
+        return self.sitls[i]
+
+    def step(self) -> None:
+        self.world.step(TICK_S)
+        self.t += TICK_S
+        for s in self.sitls:
+            s.tick(self.t)
+
+    def run(self, duration: float | None = None) -> None:
+        wall0 = time.monotonic()
+        socks = list(self._owner)
+        while not self._stop.is_set() and (duration is None or self.t < duration):
+            try:
+                self.step()
+            except Exception:  # the physics failed: record, keep every vehicle on its link
+                self.errors.append(traceback.format_exc())
+                log.exception("fleet step failed at t=%.2f", self.t)
+                if len(self.errors) > 100:
+                    raise
+            if self.speedup > 0:
+                while (lag := wall0 + self.t / self.speedup - time.monotonic()) > 0:
+                    ready, _, _ = select.select(socks, [], [], lag)
+                    for s in {self._owner[sock] for sock in ready}:
+                        s.vehicle.service()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self) -> SitlFleet:
+        self._thread = threading.Thread(target=self.run, name=f"sitl-fleet-{len(self)}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        self._close()
+
+    def _close(self) -> None:
+        for s in self.sitls:
+            s.stop()
+        self.world.close()
+
+    def __enter__(self) -> SitlFleet:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
