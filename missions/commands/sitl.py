@@ -35,7 +35,10 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def sitl(
         instance: int = typer.Option(0, "--instance", "-i", min=0, max=39, help="First instance (ports offset by N)."),
-        count: int = typer.Option(1, "--count", min=1, max=8, help="Vehicles to run, instances N, N+1, ..."),
+        count: int = typer.Option(
+            1, "--count", min=1, max=40,
+            help="Vehicles to run, instances N, N+1, ... (N + count <= 40, PX4's port plan). Two or more share "
+                 "one process, one physics step and one vectorised controller."),
         speedup: float = typer.Option(1.0, "--speedup", min=0.0, help="Lock-step speed-up; 0 = as fast as possible."),
         physics: Physics = typer.Option(Physics.pybullet, "--physics"),
         seed: int = typer.Option(0, "--seed", help="Seed of the field's episode and of the sensors."),
@@ -54,18 +57,21 @@ def register(app: typer.Typer) -> None:
         duration: float | None = typer.Option(None, "--duration", help="Stop after this many simulated seconds."),
     ) -> None:
         """Start SITL vehicles (PX4 flavour) and print how to connect to them."""
-        from sim.mavlink import Geofence, Sitl, SitlConfig
+        from sim.mavlink import Geofence, Sitl, SitlConfig, SitlFleet
         from sim.vehicle.geo import HomePosition
 
+        if instance + count > 40:
+            raise typer.BadParameter(f"instances {instance}..{instance + count - 1} pass 39: PX4's ports 14540+N "
+                                     "would meet 14580+M", param_hint="--count")
         key = _key(signing_key, signing_passphrase)
-        vehicles = []
+        cfgs = []
         for n in range(instance, instance + count):
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=HomePosition(lat, lon, alt),
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None)
-            vehicles.append(Sitl(cfg))
+            cfgs.append(cfg)
             api, gcs = cfg.api_ports[1], cfg.gcs_ports[1]
             typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}):")
             typer.echo(f"    MAVSDK / companion  udpin://0.0.0.0:{api}")
@@ -75,15 +81,14 @@ def register(app: typer.Typer) -> None:
         if key is not None:
             how = "`signing key PASSPHRASE`" if signing_passphrase else "the same 32-byte key"
             typer.echo(f"MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: {how}).")
-        for v in vehicles:
-            v.start()
+        runner = Sitl(cfgs[0]) if count == 1 else SitlFleet(cfgs)
+        runner.start()
         try:
-            while all(v.running for v in vehicles):
+            while runner.running:
                 time.sleep(0.2)
-                if duration is not None and all(v.t >= duration for v in vehicles):
+                if duration is not None and runner.t >= duration:
                     break
         except KeyboardInterrupt:
             pass
         finally:
-            for v in vehicles:
-                v.stop()
+            runner.stop()
