@@ -81,6 +81,15 @@ def _drqn(cfg: GridConfig | None = None, checkpoint: Any = None, **_: Any) -> Po
     return DrqnPolicy.load(checkpoint or shipped_checkpoint("drqn_static_random"))
 
 
+def _belief(cfg: GridConfig | None = None, prior: Any = None, loop_guard: bool | None = None,
+            **_: Any) -> Policy:
+    """prior: None (uniform), an (h, w) array, 'model' (the config's placement model) or a
+    dataset path to estimate it from. The planner does not loop, so loop_guard is ignored."""
+    from ..planner import BeliefPlanner
+
+    return BeliefPlanner(prior=prior)
+
+
 register_policy("oracle", _plans("pt"), "optimal PT with full knowledge of the targets (upper bound)")
 register_policy("cu", _plans("cu"), "closest unvisited target, with full knowledge (Eq. 2-3)")
 register_policy("ns", _simple("ns", "NaivePolicy"), "naive solution: visible target, else vote (paper V-D)")
@@ -93,3 +102,4 @@ register_policy("dualstream", _network("dualstream_static_random"),
                 "the dual-stream network (shipped checkpoint or --checkpoint)")
 register_policy("ssn", _network("ssn_static_random"),
                 "split-stream baseline network (shipped checkpoint or --checkpoint)")
+register_policy("belief", _belief, "belief-space planner: exact tour once all are sighted, else info per step")

@@ -74,6 +74,8 @@ _BLOCKED = 1e-3
 #: share of a population's size kept outside the view when the view seems to hold all of it
 #: (a found target counted as unfound): the mass never vanishes, so the support stays exact
 _LEAK = 1e-3
+#: bound on |log g| of the pair correlation, so that no finite sample rules a cell out entirely
+_LOG_PAIR_CAP = 6.0
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
 _SLOTS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
 
@@ -125,7 +127,11 @@ class BeliefState:
     Call update(obs) once per decision, including the first (obs.t == 0). See the module
     docstring for the model; PLANE_NAMES for the network input."""
 
-    def __init__(self, cfg: GridConfig, n: int, prior: np.ndarray | None = None) -> None:
+    def __init__(self, cfg: GridConfig, n: int, prior: np.ndarray | None = None,
+                 pair: np.ndarray | None = None) -> None:
+        """prior: (h, w) placement density or None (uniform). pair: (2h - 1, 2w - 1) pair
+        correlation g(dy, dx) of the placement (policy.belief.prior.estimate_pair) or None
+        (targets placed independently): static targets only, see _pool."""
         if n < 1:
             raise ValueError(f"n must be >= 1 (got {n})")
         h, w = cfg.height, cfg.width
@@ -153,6 +159,16 @@ class BeliefState:
         if cfg.moving:
             self._sighted[:] = (r * self.prior).astype(f32)
         self._offmap = offmap_table(h, w)
+        self._pair = None
+        if pair is not None and not cfg.moving:
+            pair = np.asarray(pair, dtype=np.float64)
+            if pair.shape != (2 * h - 1, 2 * w - 1) or not np.all(pair > 0):
+                raise ValueError(f"pair must be positive with shape {(2 * h - 1, 2 * w - 1)} (got {pair.shape})")
+            # M[c', c] = log g(c - c'): the log-factor a target at c' puts on a target at c
+            cy, cx = np.divmod(np.arange(h * w), w)
+            dy = cy[None, :] - cy[:, None] + h - 1
+            dx = cx[None, :] - cx[:, None] + w - 1
+            self._pair = np.clip(np.log(pair[dy, dx]), -_LOG_PAIR_CAP, _LOG_PAIR_CAP).astype(np.float32)
         self.target = self._target()
 
     # ----------------------------------------------------------------- derived quantities
@@ -160,6 +176,12 @@ class BeliefState:
         """Static: the never-sighted targets, R - n_found - sighted, over the unseen cells."""
         left = self.cfg.n_targets - self.n_found - self._sighted.sum(axis=(1, 2), dtype=np.float64)
         weight = self.prior[None] * (1.0 - self.seen)
+        if self._pair is not None:
+            # pairwise placement structure: each known target (sighted or found) multiplies the
+            # density of the others by the pair correlation at their offset (a lattice's spacing)
+            known = (self._sighted + self.found).reshape(self.n, -1)
+            logf = (known @ self._pair).reshape(weight.shape)
+            weight = weight * np.exp(logf - logf.max(axis=(1, 2), keepdims=True))
         tot = weight.sum(axis=(1, 2))
         scale = np.where(tot > 1e-12, np.maximum(left, 0.0) / np.maximum(tot, 1e-12), 0.0)
         return (weight * scale[:, None, None]).astype(np.float32)

@@ -238,3 +238,20 @@ def test_estimate_prior_from_episodes_and_dataset(tmp_path):
     assert from_data[near].sum() > 0.75
     with pytest.raises(FileNotFoundError):
         estimate_prior(tmp_path / "missing", cfg)
+
+
+def test_pair_correlation_finds_the_lattice_and_sharpens_the_pool():
+    from policy.belief import estimate_pair
+
+    eq = GridConfig(distribution="equidistant")
+    g = estimate_pair(sample_episodes(eq, 4000, 2), eq)
+    c = 9  # offset (0, 0) sits at [h - 1, w - 1]
+    assert g[c, c + 2] > 3 and g[c + 2, c] > 3  # spacing 2 along x and y
+    assert g[c, c + 1] < 0.2 and g[c + 1, c + 1] < 0.2  # never at odd offsets
+    rnd = estimate_pair(sample_episodes(GridConfig(), 4000, 2), GridConfig())
+    assert np.median(np.abs(rnd - 1)) < 0.1  # independent placement: ~1
+    # one sighted target: the unseen density now prefers the lattice's cells around it
+    b = BeliefState(eq, 1, pair=g)
+    b._sighted[0, 4, 4] = 1.0
+    pool = b._pool()[0]
+    assert pool[4, 6] > 3 * pool[4, 7] and pool[6, 4] > 3 * pool[5, 4]
