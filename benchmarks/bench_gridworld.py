@@ -1,28 +1,58 @@
-"""Grid-world stepping speed: the batched numpy engine vs the same episodes stepped one at a
-time through the gymnasium Env (the per-episode Python loop it replaces). Prints the ratio."""
+"""Grid-world stepping speed, side by side in one run (issue 13):
+- the batched numpy engine as shipped (observations computed from agent and target cells);
+- the same engine observing through the reference functions (observations.views over a target
+  occupancy grid, spatial_map, actions.valid_mask), as it did before;
+- the torch engine (torch_batch.py) on CPU, and on CUDA when a GPU is present;
+- the same episodes stepped one at a time through the gymnasium Env.
+Steps/s count active episode-steps with an observation each. Run:
+`PYTHONPATH=. python benchmarks/bench_gridworld.py`."""
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
+import torch
 
 from sim.gridworld import BatchGridWorld, GridConfig, GridSearchEnv, sample_episodes
+from sim.gridworld.actions import valid_mask
+from sim.gridworld.observations import spatial_map, target_occupancy, views
+from sim.gridworld.torch_batch import TorchGridWorld
 
 
-def batched(cfg: GridConfig, n: int, seed: int) -> tuple[float, int]:
+class ReferenceObservations(BatchGridWorld):
+    """The engine with the observation path it had before issue 13."""
+
+    def valid_actions(self) -> np.ndarray:
+        return valid_mask(self.agent, self.cfg.width, self.cfg.height, self.n_actions)
+
+    def observe(self) -> tuple[np.ndarray, np.ndarray]:
+        cfg = self.cfg
+        v = views(self.agent, target_occupancy(self.targets(), cfg.width, cfg.height))
+        if cfg.map_variant == "spatiotemporal":
+            return v, np.stack([self.trail, self.recoveries], axis=1)
+        return v, spatial_map(self.agent, self.visited, self.met if cfg.map_variant == "memory" else None)
+
+
+def batched(cfg: GridConfig, n: int, seed: int, engine=BatchGridWorld, **kw) -> float:
+    episodes = sample_episodes(cfg, n, seed)
     t0 = time.perf_counter()
-    world = BatchGridWorld(sample_episodes(cfg, n, seed), seed)
+    world = engine(episodes, seed, **kw)
     rng = np.random.default_rng(seed)
     steps = 0
-    while not world.done.all():
+    is_torch = engine is TorchGridWorld
+    while not bool(world.done.all()):
         steps += int((~world.done).sum())
         world.observe()
-        world.step(rng.integers(0, cfg.n_actions, n))
-    return time.perf_counter() - t0, steps
+        a = rng.integers(0, cfg.n_actions, n)
+        world.step(torch.as_tensor(a) if is_torch else a)
+    if is_torch and world.device.type == "cuda":
+        torch.cuda.synchronize()
+    return steps / (time.perf_counter() - t0)
 
 
-def per_episode(cfg: GridConfig, n: int, seed: int) -> tuple[float, int]:
+def per_episode(cfg: GridConfig, n: int, seed: int) -> float:
     t0 = time.perf_counter()
     env = GridSearchEnv(cfg)
     rng = np.random.default_rng(seed)
@@ -34,17 +64,31 @@ def per_episode(cfg: GridConfig, n: int, seed: int) -> tuple[float, int]:
             _, _, term, trunc, _ = env.step(int(rng.integers(0, cfg.n_actions)))
             steps += 1
             done = term or trunc
-    return time.perf_counter() - t0, steps
+    return steps / (time.perf_counter() - t0)
 
 
 def main() -> None:
-    print(f"{'setting':<28}{'batched steps/s':>18}{'per-episode steps/s':>22}{'ratio':>8}")
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; torch threads {torch.get_num_threads()}; "
+          f"GPU: {torch.cuda.get_device_name(0) if torch.cuda.is_available() else 'none'}; best of 3 interleaved rounds")
+    cols = ["batched", "reference obs", "torch cpu"] + (["torch cuda"] if torch.cuda.is_available() else []) + \
+        ["per-episode"]
+    print(f"{'setting':<28}" + "".join(f"{c:>15}" for c in cols) + f"{'new/ref':>9}")
     for motion, dist, mp in [("static", "random", "spatial"), ("herd", "equidistant", "spatiotemporal")]:
         cfg = GridConfig(distribution=dist, motion=motion, map_variant=mp)
-        tb, sb = batched(cfg, 2000, 1)
-        tp, sp = per_episode(cfg, 40, 1)
-        rb, rp = sb / tb, sp / tp
-        print(f"{motion + '/' + dist:<28}{rb:>18,.0f}{rp:>22,.0f}{rb / rp:>7.1f}x")
+        runs = {
+            "batched": lambda c=cfg: batched(c, 2000, 1),
+            "reference obs": lambda c=cfg: batched(c, 2000, 1, ReferenceObservations),
+            "torch cpu": lambda c=cfg: batched(c, 2000, 1, TorchGridWorld, device="cpu"),
+            "per-episode": lambda c=cfg: per_episode(c, 40, 1),
+        }
+        if torch.cuda.is_available():
+            runs["torch cuda"] = lambda c=cfg: batched(c, 200_000, 1, TorchGridWorld, device="cuda")
+        best = dict.fromkeys(runs, 0.0)
+        for _ in range(3):
+            for name, run in runs.items():
+                best[name] = max(best[name], run())
+        ratio = best["batched"] / best["reference obs"]
+        print(f"{motion + '/' + dist:<28}" + "".join(f"{best[c]:>15,.0f}" for c in cols) + f"{ratio:>8.2f}x")
 
 
 if __name__ == "__main__":

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .actions import DELTAS, valid_mask
+from .actions import DELTAS
 from .config import GridConfig
 from .episodes import Episodes
-from .observations import spatial_map, target_occupancy, views
+from .observations import AGENT_VALUE, MET_VALUE, VIEW_CHANNELS, VISITED_VALUE
 
 
 class BatchGridWorld:
@@ -44,6 +44,10 @@ class BatchGridWorld:
         if cfg.map_variant == "spatiotemporal":
             self.trail[self._rows, self.agent[:, 1], self.agent[:, 0]] = cfg.trail_value
         self.done = np.zeros(n, dtype=bool)
+        # the spatial map without the agent, kept up to date in step (observe copies it): the
+        # map from visited/met at every observation cost more than the step itself
+        self._map = np.zeros((n, h, w), dtype=np.float32)
+        self._map[self._rows, self.agent[:, 1], self.agent[:, 0]] = VISITED_VALUE
         self.replaced = np.zeros(n, dtype=np.int64)
         self._history: list[np.ndarray] = [self.agent.astype(np.int16)]
         self._check_start()
@@ -62,17 +66,33 @@ class BatchGridWorld:
         return self.episodes.targets_at(self.t)
 
     def valid_actions(self) -> np.ndarray:
-        return valid_mask(self.agent, self.cfg.width, self.cfg.height, self.n_actions)
+        """(n, n_actions) bool: which actions keep each agent on the map (actions.valid_mask)."""
+        x, y = self.agent[:, 0], self.agent[:, 1]
+        cols = [y > 0, y < self.cfg.height - 1, x > 0, x < self.cfg.width - 1, np.ones(self.n, dtype=bool)]
+        return np.stack(cols[: self.n_actions], axis=1)
 
     def observe(self) -> tuple[np.ndarray, np.ndarray]:
-        """(views (n, 3, 3, 3) uint8, maps (n, C, h, w) float32) for every episode."""
+        """(views (n, 3, 3, 3) uint8, maps (n, C, h, w) float32) for every episode: the same as
+        observations.views and spatial_map, computed from the target and agent cells directly."""
         cfg = self.cfg
-        occ = target_occupancy(self.targets(), cfg.width, cfg.height)
-        v = views(self.agent, occ)
+        n, w, h = self.n, cfg.width, cfg.height
+        x, y = self.agent[:, 0], self.agent[:, 1]
+        v = np.zeros((n, VIEW_CHANNELS, 3, 3), dtype=np.uint8)
+        tg = self.targets()
+        dx, dy = tg[..., 0] - x[:, None] + 1, tg[..., 1] - y[:, None] + 1  # (n, R) in 0..2 when in view
+        near = (dx >= 0) & (dx <= 2) & (dy >= 0) & (dy <= 2)
+        ep, _ = np.nonzero(near)
+        v[ep, 0, dy[near], dx[near]] = 1
+        off_rows = np.stack([y == 0, np.zeros(n, dtype=bool), y == h - 1], axis=1)  # (n, 3)
+        off_cols = np.stack([x == 0, np.zeros(n, dtype=bool), x == w - 1], axis=1)
+        v[:, 1] = off_rows[:, :, None] | off_cols[:, None, :]
+        v[:, 2, 1, 1] = 1
         if cfg.map_variant == "spatiotemporal":
             m = np.stack([self.trail, self.recoveries], axis=1)
         else:
-            m = spatial_map(self.agent, self.visited, self.met if cfg.map_variant == "memory" else None)
+            m = self._map.copy()
+            m[self._rows, y, x] = AGENT_VALUE
+            m = m[:, None]
         return v, m
 
     def step(self, actions: np.ndarray) -> np.ndarray:
@@ -97,13 +117,16 @@ class BatchGridWorld:
         self.t[active] += 1
         ay, ax = self.agent[rows, 1], self.agent[rows, 0]
         self.visited[rows, ay, ax] = True
+        cell = self._map[rows, ay, ax]
+        self._map[rows, ay, ax] = np.maximum(cell, VISITED_VALUE)  # a met cell stays MET_VALUE
         if self.cfg.map_variant == "spatiotemporal":
             for grid in (self.trail, self.recoveries):
                 g = grid[rows]
                 np.subtract(g, 1.0, out=g, where=g > 0)
                 grid[rows] = g
             self.trail[rows, ay, ax] = self.cfg.trail_value
-        hits = np.all(self.targets() == self.agent[:, None, :], axis=-1) & ~self.found
+        tg = self.targets()
+        hits = (tg[..., 0] == self.agent[:, None, 0]) & (tg[..., 1] == self.agent[:, None, 1]) & ~self.found
         hits &= active[:, None]
         newly = hits.sum(axis=1)
         if newly.any():
@@ -111,6 +134,8 @@ class BatchGridWorld:
             self.find_moves[hits] = np.broadcast_to(self.t[:, None], hits.shape)[hits]
             got = newly > 0
             self.met[self._rows[got], self.agent[got, 1], self.agent[got, 0]] = True
+            if self.cfg.map_variant == "memory":
+                self._map[self._rows[got], self.agent[got, 1], self.agent[got, 0]] = MET_VALUE
             self.recoveries[self._rows[got], self.agent[got, 1], self.agent[got, 0]] = self.cfg.trail_value
         self.done |= self.found.all(axis=1) | (self.t > self.cfg.t_e)
         self._history.append(self.agent.astype(np.int16))
