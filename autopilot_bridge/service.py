@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -49,6 +51,19 @@ class SearchLog:
     wall_s: float = 0.0
 
 
+@dataclass(frozen=True)
+class Progress:
+    """What the operator sees after each decision (the service's own view, never the truth)."""
+
+    move: int
+    max_moves: int
+    found: int
+    n_targets: int
+    cell: tuple[int, int]
+    elapsed_s: float
+    position_sd_m: float
+
+
 class FrameRequester:
     """Collects frames from the image transmission protocol on the link's receive thread."""
 
@@ -73,8 +88,10 @@ class FrameRequester:
 
 class PolicyService:
     def __init__(self, link: VehicleLink, policy: Policy, spec: SearchSpec, seed: int = 0,
-                 detector: DetectorConfig | None = None, clock=time.monotonic) -> None:
+                 detector: DetectorConfig | None = None, clock=time.monotonic,
+                 on_progress: Callable[[Progress], None] | None = None) -> None:
         self.link, self.policy, self.spec = link, policy, spec
+        self.on_progress = on_progress
         self.det = detector or DetectorConfig(altitude_m=spec.altitude_m)
         self.rng = np.random.default_rng([seed, 0x5E2])
         self.estimator = GpsEstimator()
@@ -175,6 +192,9 @@ class PolicyService:
                 self.pmap.mark_target()
                 self.log.believed_found.append(move)
                 view[0, 1, 1] = 1
+            if self.on_progress is not None:
+                self.on_progress(Progress(move, max_moves, found, g.n_targets, (int(cell[0]), int(cell[1])),
+                                          self.clock() - t_start, self.log.posterior_sd_m[-1]))
             if found >= g.n_targets or move == max_moves:
                 break
             obs = Observation(
@@ -183,13 +203,22 @@ class PolicyService:
                 t=np.array([move]), active=np.array([True]),
             )
             a = int(self.policy.act(obs)[0])
-            if not obs.valid[0, a]:  # off the map: a random valid move instead (Section V-A)
-                a = int(self.rng.choice(np.flatnonzero(obs.valid[0])))
+            stay = False
+            if not obs.valid[0, a]:
+                if getattr(self.policy, "off_map", "random") == "stay":
+                    stay = True  # a wall bump leaves it in place, as in the world it learned in (DRQN)
+                else:  # off the map: a random valid move instead (Section V-A)
+                    a = int(self.rng.choice(np.flatnonzero(obs.valid[0])))
             self.log.decision_ms.append(1e3 * (time.perf_counter() - t0))
-            cell = cell + DELTAS[a]
-            self._fly_to(cell, timeout_per_move)
+            if not stay:
+                cell = cell + DELTAS[a]
+                self._fly_to(cell, timeout_per_move)
         self.log.wall_s = self.clock() - t_start
         return self.log
+
+    def stop_setpoints(self) -> None:
+        """Stop streaming OFFBOARD setpoints (before handing the vehicle to an AUTO mode)."""
+        self._stream_stop.set()
 
     def land(self, timeout: float = 60.0) -> None:
         self._stream_stop.set()
@@ -197,9 +226,10 @@ class PolicyService:
         self.link.wait_for(lambda: not self.link.telemetry.armed, timeout, "landing and disarm")
 
 
-def save_log(log: SearchLog, path: Path) -> None:
+def save_log(log: SearchLog, path: Path, **extra: Any) -> None:
+    """The search log, plus anything the caller adds (how the flight ended, provenance)."""
     from dataclasses import asdict
 
     from provenance import atomic_write_json
 
-    atomic_write_json(path, asdict(log))
+    atomic_write_json(path, {**asdict(log), **extra})

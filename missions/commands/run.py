@@ -1,24 +1,49 @@
-"""`uavsearch run`: fly the search with the policy service against any MAVLink vehicle."""
+"""`uavsearch run`: fly the search with the policy service against any MAVLink vehicle.
+
+Every exit path brings the vehicle down (see missions/guarded.py) and writes the search log;
+the exit status says how it ended: 0 all |R| found and landed, 3 the search ended short of |R|,
+1 a failure (the vehicle was sent to --on-abort), 128+N interrupted by signal N (130 Ctrl-C)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import typer
+
+from autopilot_bridge.abort import AbortAction
+from missions.commands.options import Dist, Motion
+
+
+def _check(ok: bool, value: object, hint: str, why: str) -> None:
+    if not ok:
+        raise typer.BadParameter(f"{value!r}: {why}", param_hint=hint)
 
 
 def register(app: typer.Typer) -> None:
     @app.command()
     def run(
-        connect: str = typer.Option("udpin:0.0.0.0:14540", "--connect", help="pymavlink address of the vehicle."),
-        origin_lat: float = typer.Option(..., "--origin-lat", help="Latitude of cell (0, 0)'s centre."),
-        origin_lon: float = typer.Option(..., "--origin-lon", help="Longitude of cell (0, 0)'s centre."),
-        origin_alt: float = typer.Option(30.0, "--origin-alt", help="Ground altitude AMSL (m)."),
-        width: int = typer.Option(10, "--width"),
-        height: int = typer.Option(10, "--height"),
-        targets: int = typer.Option(5, "--targets", help="How many targets to find (|R|)."),
-        altitude: float = typer.Option(3.5, "--altitude"),
-        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Default: the shipped policy."),
+        field: Path | None = typer.Option(
+            None, "--field", help="The field file `uavsearch sitl` wrote (origin, size, |R|, motion, address)."),
+        connect: str | None = typer.Option(
+            None, "--connect", help="pymavlink address of the vehicle [default: the field file's, else udpin:0.0.0.0:14540]."),
+        origin_lat: float | None = typer.Option(None, "--origin-lat", help="Latitude of cell (0, 0)'s centre."),
+        origin_lon: float | None = typer.Option(None, "--origin-lon", help="Longitude of cell (0, 0)'s centre."),
+        origin_alt: float | None = typer.Option(None, "--origin-alt", help="Ground altitude AMSL (m) [default 30]."),
+        width: int | None = typer.Option(None, "--width", help="Grid width (cells) [default: field file, else 10]."),
+        height: int | None = typer.Option(None, "--height", help="Grid height (cells) [default: field file, else 10]."),
+        targets: int | None = typer.Option(None, "--targets", help="How many targets to find, |R| [default 5]."),
+        distribution: Dist | None = typer.Option(None, "--distribution", help="Target placement [default random]."),
+        motion: Motion | None = typer.Option(None, "--motion", help="Target motion [default static]."),
+        policy: str | None = typer.Option(None, "--policy", help="A registered policy (see `uavsearch eval --help`)."),
+        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="A trained network or DRQN checkpoint."),
+        altitude: float = typer.Option(3.5, "--altitude", help="Search altitude above home (m), 1 to 30."),
+        max_moves: int | None = typer.Option(None, "--max-moves", help="Stop after this many moves [default t_e]."),
+        move_timeout: float = typer.Option(20.0, "--move-timeout", help="Seconds one move may take before aborting."),
+        on_abort: AbortAction = typer.Option(
+            AbortAction.rtl, "--on-abort", help="What the vehicle does when the search fails or is interrupted."),
+        abort_timeout: float = typer.Option(120.0, "--abort-timeout", help="Seconds to wait for the disarm after an abort."),
+        hold_time: float = typer.Option(60.0, "--hold-time", help="With --on-abort hold: seconds left to the operator before landing."),
         seed: int = typer.Option(0, "--seed"),
         out: Path = typer.Option(Path("out/run"), "--out"),
         tlog: bool = typer.Option(True, "--tlog/--no-tlog", help="Log the link to OUT/companion.tlog."),
@@ -26,23 +51,85 @@ def register(app: typer.Typer) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
         from autopilot_bridge.link import VehicleLink
         from autopilot_bridge.service import PolicyService, SearchSpec, save_log
-        from policy.nn import load_policy
+        from missions.fieldfile import FieldFileError, FieldSpec, read_field
+        from missions.flight_policy import PolicyUnfit, flight_policy
+        from missions.guarded import EXIT_OK, EXIT_SHORT, guarded_search
+        from missions.ports import udp_port_taken, udpin_port
+        from missions.progress import FlightProgress
+        from provenance import stamp
         from sim.gridworld import ConfigError, GridConfig
         from sim.gridworld.geodesy import HomePosition
 
+        fs: FieldSpec | None = None
+        if field is not None:
+            try:
+                fs = read_field(field)
+            except FieldFileError as e:
+                raise typer.BadParameter(str(e), param_hint="--field") from e
+        if fs is None and (origin_lat is None or origin_lon is None):
+            raise typer.BadParameter("give --field FILE (written by `uavsearch sitl`) or both --origin-lat and "
+                                     "--origin-lon (the centre of cell (0, 0))", param_hint="--field")
+        g0 = fs.grid if fs is not None else GridConfig()
+        o0 = fs.origin if fs is not None else HomePosition(0.0, 0.0, 30.0)
+
+        def pick(given, from_field):  # an explicit option wins over the field file
+            return from_field if given is None else given
+
+        for v, hint in ((altitude, "--altitude"), (move_timeout, "--move-timeout"), (abort_timeout, "--abort-timeout"),
+                        (hold_time, "--hold-time")):
+            _check(math.isfinite(v), v, hint, "must be a finite number")
+        _check(1.0 <= altitude <= 30.0, altitude, "--altitude", "the search altitude must be 1 to 30 m above home "
+               "(the camera's 3 x 3-cell view is built for 3.5 m)")
+        _check(move_timeout > 0, move_timeout, "--move-timeout", "must be > 0 s")
+        _check(abort_timeout > 0, abort_timeout, "--abort-timeout", "must be > 0 s")
+        _check(hold_time >= 0, hold_time, "--hold-time", "must be >= 0 s")
+        _check(max_moves is None or max_moves >= 1, max_moves, "--max-moves", "must be >= 1")
         try:
-            grid = GridConfig(width=width, height=height, n_targets=targets)
-            origin = HomePosition(origin_lat, origin_lon, origin_alt)
+            motion_v = motion.value if motion is not None else g0.motion
+            grid = GridConfig(
+                width=pick(width, g0.width), height=pick(height, g0.height), n_targets=pick(targets, g0.n_targets),
+                distribution=distribution.value if distribution is not None else g0.distribution,
+                motion=motion_v, map_variant="spatial" if motion_v == "static" else "spatiotemporal")
+            origin = HomePosition(pick(origin_lat, o0.lat_deg), pick(origin_lon, o0.lon_deg), pick(origin_alt, o0.alt_m))
         except (ConfigError, ValueError) as e:
             raise typer.BadParameter(str(e)) from e
+        if fs is not None and (grid.width, grid.height, grid.n_targets) != (g0.width, g0.height, g0.n_targets):
+            typer.echo(f"warning: flying a {grid.width} x {grid.height} field with {grid.n_targets} targets; "
+                       f"{field} says {g0.width} x {g0.height} with {g0.n_targets}", err=True)
+        address = connect or (fs.connect if fs is not None and fs.connect else "udpin:0.0.0.0:14540")
+        port = udpin_port(address)
+        if port is not None and udp_port_taken(port):
+            raise typer.BadParameter(f"UDP port {port} is taken: is another `uavsearch run` connected to this "
+                                     "vehicle? Stop it first", param_hint="--connect")
+        try:  # before anything flies: a policy that cannot serve this field says so now
+            pol = flight_policy(policy, checkpoint, grid, seed)
+        except PolicyUnfit as e:
+            raise typer.BadParameter(str(e), param_hint="--policy") from e
+
         out.mkdir(parents=True, exist_ok=True)
-        link = VehicleLink(connect, tlog=out / "companion.tlog" if tlog else None)
+        config = {"connect": address, "field": None if field is None else str(field), "grid": grid.to_dict(),
+                  "origin": [origin.lat_deg, origin.lon_deg, origin.alt_m], "policy": pol.name,
+                  "checkpoint": None if checkpoint is None else str(checkpoint), "altitude": altitude,
+                  "max_moves": max_moves, "on_abort": on_abort.value}
+        link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
+                           tlog_meta=stamp(config, seed, kind="companion tlog"))
+        typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
+                   f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
         try:
-            service = PolicyService(link, load_policy(checkpoint, cfg=grid), SearchSpec(origin, grid, altitude), seed)
-            service.take_off()
-            log = service.run()
-            service.land()
-            save_log(log, out / "search_log.json")
-            typer.echo(f"{len(log.cells) - 1} moves, {len(log.believed_found)} targets believed found; log in {out}")
+            with FlightProgress(f"search ({pol.name})") as progress:
+                service = PolicyService(link, pol, SearchSpec(origin, grid, altitude, max_moves=max_moves), seed,
+                                        on_progress=progress)
+                end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
+                                     move_timeout_s=move_timeout)
         finally:
             link.close()
+        log = end.log
+        save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed))
+        moves = max(len(log.cells) - 1, 0)
+        typer.echo(f"{moves} moves, {len(log.believed_found)}/{grid.n_targets} targets believed found; log in {out}")
+        if end.exit_code == EXIT_SHORT:
+            typer.echo(f"warning: {end.cause}", err=True)
+        elif end.exit_code != EXIT_OK:
+            typer.echo(f"error: {end.cause}", err=True)
+        raise typer.Exit(end.exit_code)
+

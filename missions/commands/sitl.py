@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import hashlib
+import signal
 import time
 from enum import StrEnum
 from pathlib import Path
 
+import numpy as np
 import typer
+
+from missions.commands.options import DIST, HEIGHT, MOTION, TARGETS, WIDTH, Dist, Motion
 
 
 class Physics(StrEnum):
@@ -45,7 +49,18 @@ def register(app: typer.Typer) -> None:
         lat: float = typer.Option(51.4545, "--lat", help="Field origin latitude."),
         lon: float = typer.Option(-2.5879, "--lon", help="Field origin longitude."),
         alt: float = typer.Option(30.0, "--alt", help="Field origin altitude (m AMSL)."),
-        fence_radius: float = typer.Option(100.0, "--fence-radius", min=1.0, help="Geofence: max metres from home."),
+        width: int = WIDTH,
+        height: int = HEIGHT,
+        targets: int = TARGETS,
+        distribution: Dist = DIST,
+        motion: Motion = MOTION,
+        cell_m: float = typer.Option(2.0, "--cell-m", help="Cell size (m); the simulated camera is built for 2 m."),
+        field_out: Path = typer.Option(
+            Path("out/sitl/field.json"), "--field-out",
+            help="Write the field (origin, size, cell size, |R|, motion, address) here for `run --field`; "
+                 "with --count > 1, NAME-N.json per vehicle."),
+        fence_radius: float | None = typer.Option(
+            None, "--fence-radius", min=1.0, help="Geofence: max metres from home (default: 100, or more for a large field)."),
         fence_alt: float = typer.Option(30.0, "--fence-alt", min=1.0, help="Geofence: max metres above home."),
         gcs_port_per_instance: bool = typer.Option(
             False, "--gcs-port-per-instance",
@@ -57,6 +72,9 @@ def register(app: typer.Typer) -> None:
         duration: float | None = typer.Option(None, "--duration", help="Stop after this many simulated seconds."),
     ) -> None:
         """Start SITL vehicles (PX4 flavour) and print how to connect to them."""
+        from missions.fieldfile import FieldSpec, write_field
+        from missions.ports import udp_port_taken
+        from sim.gridworld import ConfigError, GridConfig
         from sim.mavlink import Geofence, Sitl, SitlConfig, SitlFleet
         from sim.vehicle.geo import HomePosition
 
@@ -64,10 +82,32 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"instances {instance}..{instance + count - 1} pass 39: PX4's ports 14540+N "
                                      "would meet 14580+M", param_hint="--count")
         key = _key(signing_key, signing_passphrase)
+        if cell_m != 2.0:
+            raise typer.BadParameter(f"only 2 m cells are simulated so far (got {cell_m}): the camera, the field "
+                                     "and the detector are built for 2 m", param_hint="--cell-m")
+        try:
+            grid = GridConfig(width=width, height=height, n_targets=targets, distribution=distribution.value,
+                              motion=motion.value)
+            origin = HomePosition(lat, lon, alt)
+        except (ConfigError, ValueError) as e:
+            raise typer.BadParameter(str(e)) from e
+        # the fence must hold the whole field seen from any spawn cell: its diagonal, and a margin
+        diagonal = float(np.hypot(width, height)) * cell_m
+        if fence_radius is None:
+            fence_radius = max(100.0, 1.2 * diagonal + 10.0)
+        elif fence_radius < diagonal:
+            typer.echo(f"warning: --fence-radius {fence_radius:g} m is smaller than the field's diagonal "
+                       f"({diagonal:.0f} m): some cells may be out of reach", err=True)
         cfgs = []
         for n in range(instance, instance + count):
+            probe = SitlConfig(instance=n, gcs_remote_port=14550 + n if gcs_port_per_instance else None)
+            for port, what in ((probe.api_ports[0], "API link"), (probe.gcs_ports[0], "GCS link")):
+                if udp_port_taken(port):
+                    raise typer.BadParameter(
+                        f"UDP port {port} ({what} of instance {n}) is taken: is another `uavsearch sitl "
+                        f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
-            cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=HomePosition(lat, lon, alt),
+            cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None)
@@ -78,9 +118,20 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"    MAVProxy            mavproxy.py --master=udpin:0.0.0.0:{gcs}")
             qgc = "connects by itself (UDP 14550)" if gcs == 14550 else f"add a UDP comm link on port {gcs}"
             typer.echo(f"    QGroundControl      {qgc}")
+            fpath = field_out if count == 1 else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
+            write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value),
+                        seed + n, sitl=cfg.to_dict())
+            typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
+                       f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
+            typer.echo(f"    companion           uavsearch run --field {fpath}")
         if key is not None:
             how = "`signing key PASSPHRASE`" if signing_passphrase else "the same 32-byte key"
             typer.echo(f"MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: {how}).")
+
+        def terminate(_signum: int, _frame: object) -> None:  # SIGTERM stops as cleanly as Ctrl-C
+            raise KeyboardInterrupt
+
+        signal.signal(signal.SIGTERM, terminate)
         runner = Sitl(cfgs[0]) if count == 1 else SitlFleet(cfgs)
         runner.start()
         try:

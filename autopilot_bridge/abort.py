@@ -1,0 +1,98 @@
+"""Bringing the vehicle down when a search cannot go on (interrupted, link error, timeout, a
+bug in the policy): the one rule is that the companion never walks away from an armed vehicle
+in the air without having told it to come down, and says what it saw.
+
+`rtl` and `land` hand the vehicle to the autopilot's own RTL / LAND; `hold` hands it to the
+operator (PX4's AUTO.LOITER) for a bounded time and lands it if nobody has by then. Each
+waits, bounded, for the disarm that follows the touchdown. A refused or unanswered command
+falls back to LAND; if even that gets no answer the outcome says so (the autopilot's own
+offboard-loss failsafe is then all that is left).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from enum import StrEnum
+
+from .link import CommandRejected, LinkError, VehicleLink
+
+ON_GROUND = 1  # MAV_LANDED_STATE_ON_GROUND
+
+
+class AbortAction(StrEnum):
+    rtl = "rtl"
+    land = "land"
+    hold = "hold"
+
+
+@dataclass(frozen=True)
+class Touchdown:
+    """How the bring-down went; `disarmed` is the one that matters."""
+
+    action: str
+    commanded: list[str]
+    disarmed: bool
+    waited_s: float
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _try(cmd: Callable[[], None], name: str, commanded: list[str], notes: list[str]) -> bool:
+    try:
+        cmd()
+    except (CommandRejected, LinkError, OSError) as e:
+        notes.append(f"{name} failed: {e}")
+        return False
+    commanded.append(name)
+    return True
+
+
+def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 120.0,
+               hold_s: float = 60.0, echo: Callable[[str], None] = print,
+               stop_waiting: Callable[[], bool] = lambda: False) -> Touchdown:
+    """Command `action`, then wait up to timeout_s (hold: hold_s for the operator, then land)
+    for the vehicle to disarm. `stop_waiting()` true ends the wait early (a second Ctrl-C);
+    the vehicle keeps the command it was given."""
+    action = AbortAction(action)
+    t0 = time.monotonic()
+    commanded: list[str] = []
+    notes: list[str] = []
+    tel = link.telemetry
+    if not tel.armed:
+        return Touchdown(action.value, commanded, True, 0.0, "never armed or already disarmed")
+    if tel.landed_state == ON_GROUND:  # armed on the ground (e.g. failed during take-off)
+        _try(link.disarm, "disarm", commanded, notes)
+    else:
+        ok = {
+            AbortAction.rtl: lambda: _try(link.return_to_launch, "RTL", commanded, notes),
+            AbortAction.land: lambda: _try(link.land, "LAND", commanded, notes),
+            AbortAction.hold: lambda: _try(lambda: link.set_mode("AUTO.LOITER"), "HOLD", commanded, notes),
+        }[action]()
+        if not ok and action is not AbortAction.land:
+            _try(link.land, "LAND", commanded, notes)
+        echo(f"abort: {' then '.join(commanded) or 'no command was accepted'}; waiting for disarm "
+             f"(up to {timeout_s:.0f} s)" + (f" [{'; '.join(notes)}]" if notes else ""))
+    landing_forced = False
+    deadline = timeout_s + (hold_s if action is AbortAction.hold else 0.0)
+    while tel.armed:
+        waited = time.monotonic() - t0
+        if stop_waiting():
+            notes.append("operator stopped waiting")
+            break
+        if action is AbortAction.hold and not landing_forced and waited > hold_s:
+            echo(f"abort: nobody landed the vehicle within {hold_s:.0f} s of HOLD: landing it")
+            landing_forced = _try(link.land, "LAND", commanded, notes) or True
+        if waited > deadline:
+            notes.append(f"still armed after {deadline:.0f} s")
+            if tel.landed_state == ON_GROUND:  # down but not auto-disarmed: finish the job
+                _try(link.disarm, "disarm", commanded, notes)
+            break
+        time.sleep(0.05)
+    if tel.armed and time.monotonic() - tel.heartbeat_time > 3.0:
+        notes.append("no heartbeat from the vehicle for "
+                     f"{time.monotonic() - tel.heartbeat_time:.0f} s: its own failsafe is all that is left")
+    return Touchdown(action.value, commanded, not tel.armed, round(time.monotonic() - t0, 2), "; ".join(notes))

@@ -1,0 +1,69 @@
+"""The field file: what `uavsearch sitl` tells `uavsearch run` about the field it simulates.
+
+The companion needs the field's corner (cell (0, 0)'s centre, WGS84), its size, the cell size,
+|R| and the target model, and where to connect; before this file an operator typed the origin
+by hand and a wrong one flew 300 moves to find 1 of 5. It never holds the targets' positions
+(the truth stays in the simulator). Written atomically with provenance."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from provenance import atomic_write_json, stamp
+from sim.gridworld import DEFAULT_CELL_M, ConfigError, GridConfig
+from sim.gridworld.geodesy import HomePosition
+
+KIND = "uavsearch field"
+
+
+class FieldFileError(ValueError):
+    pass
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    origin: HomePosition  # cell (0, 0)'s centre
+    grid: GridConfig
+    cell_m: float = DEFAULT_CELL_M
+    connect: str | None = None  # the companion's pymavlink address for this vehicle
+    instance: int | None = None
+    physics: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": KIND,
+                "origin": {"lat": self.origin.lat_deg, "lon": self.origin.lon_deg, "alt": self.origin.alt_m},
+                "cell_m": self.cell_m, "width": self.grid.width, "height": self.grid.height,
+                "targets": self.grid.n_targets, "distribution": self.grid.distribution,
+                "motion": self.grid.motion, "target_period": self.grid.target_period,
+                "connect": self.connect, "instance": self.instance, "physics": self.physics}
+
+
+def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
+    atomic_write_json(path, {**spec.to_dict(), "provenance": stamp(None, seed, **extra)})
+
+
+def read_field(path: Path) -> FieldSpec:
+    """The field a `sitl` wrote; every problem names the file and the value."""
+    try:
+        d = json.loads(Path(path).read_text())
+    except FileNotFoundError as e:
+        raise FieldFileError(f"field file {path} does not exist (uavsearch sitl writes it: --field-out)") from e
+    except (OSError, json.JSONDecodeError) as e:
+        raise FieldFileError(f"field file {path} is not readable JSON ({e})") from e
+    if not isinstance(d, dict) or d.get("kind") != KIND:
+        raise FieldFileError(f"{path} is not a uavsearch field file (kind {d.get('kind') if isinstance(d, dict) else None!r})")
+    try:
+        o = d["origin"]
+        origin = HomePosition(float(o["lat"]), float(o["lon"]), float(o["alt"]))
+        grid = GridConfig(width=int(d["width"]), height=int(d["height"]), n_targets=int(d["targets"]),
+                          distribution=d["distribution"], motion=d["motion"],
+                          target_period=int(d.get("target_period", 3)))
+        cell_m = float(d["cell_m"])
+    except (KeyError, TypeError, ValueError, ConfigError) as e:
+        raise FieldFileError(f"field file {path}: bad or missing entry ({type(e).__name__}: {e})") from e
+    if not cell_m > 0:
+        raise FieldFileError(f"field file {path}: cell_m must be positive (got {cell_m})")
+    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"))

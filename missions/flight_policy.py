@@ -1,0 +1,76 @@
+"""Which policy flies, and the check that it can fly this field before anything takes off."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from policy.base import Observation, Policy
+from sim.gridworld import GridConfig
+
+#: the policy a flight uses when the operator names none: the best shipped policy that flies.
+#: (The one place to change it when a better one ships.)
+FLIGHT_POLICY = "dualstream"
+
+
+class PolicyUnfit(ValueError):
+    """This policy cannot fly this field; the message says why and what to do instead."""
+
+
+def flight_policy(name: str | None, checkpoint: Path | None, grid: GridConfig, seed: int = 0) -> Policy:
+    """Build the policy by registry name (or from a checkpoint alone), and make it decide once
+    on a blank observation of this field, so a size it cannot serve is said before take-off."""
+    from policy.baselines import known_policies, make_policy
+    from policy.nn import CheckpointError
+
+    if checkpoint is not None and not Path(checkpoint).exists():
+        raise PolicyUnfit(f"checkpoint {checkpoint} does not exist")
+    if name is None:
+        name = FLIGHT_POLICY if checkpoint is None else _checkpoint_kind(Path(checkpoint))
+    if name not in known_policies():
+        raise PolicyUnfit(f"unknown policy {name!r}; known: {', '.join(known_policies())}")
+    kw = {"checkpoint": checkpoint} if checkpoint is not None else {}
+    try:
+        policy = make_policy(name, cfg=grid, **kw)
+    except (CheckpointError, FileNotFoundError, ValueError, KeyError, RuntimeError) as e:
+        raise PolicyUnfit(f"policy {name!r} cannot fly a {grid.width} x {grid.height} field with "
+                          f"{grid.n_targets} targets ({grid.motion}): {e}") from e
+    if policy.needs_truth:
+        raise PolicyUnfit(f"policy {name!r} needs the field's truth (target positions); a companion computer "
+                          "does not have it: pick one that searches")
+    try:
+        policy.reset(grid, 1, seed)
+        a = int(policy.act(blank_observation(grid))[0])
+    except Exception as e:  # noqa: BLE001 - whatever it is, it must show before take-off
+        raise PolicyUnfit(f"policy {name!r} cannot decide on a {grid.width} x {grid.height} field "
+                          f"({type(e).__name__}: {e})") from e
+    if not 0 <= a < grid.n_actions:
+        raise PolicyUnfit(f"policy {name!r} answered action {a}; this field has {grid.n_actions} actions")
+    return policy
+
+
+def blank_observation(grid: GridConfig) -> Observation:
+    """The first observation of a search in the field's middle: nothing seen, nothing visited."""
+    from autopilot_bridge.detector import valid_moves
+
+    cell = np.array([grid.width // 2, grid.height // 2])
+    view = np.zeros((1, 3, 3, 3), np.uint8)
+    view[0, 2, 1, 1] = 1
+    maps = np.zeros((1, grid.map_channels, grid.height, grid.width), np.float32)
+    return Observation(views=view, maps=maps, positions=cell[None].astype(np.int64),
+                       valid=valid_moves(cell, grid.width, grid.height, grid.n_actions)[None],
+                       t=np.zeros(1, np.int64), active=np.ones(1, bool))
+
+
+def _checkpoint_kind(path: Path) -> str:
+    """A checkpoint alone: the DRQN's has its own format; every other is a dual-stream/SSN net."""
+    from policy.nn import read_checkpoint
+
+    try:
+        doc = read_checkpoint(path)
+    except Exception:  # noqa: BLE001 - not the network format: try the DRQN's
+        return "drqn"
+    mc = doc.get("model_config")
+    model = mc.get("model") if isinstance(mc, dict) else getattr(mc, "model", None)
+    return str(model or "dualstream")

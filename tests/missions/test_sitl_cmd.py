@@ -1,0 +1,33 @@
+"""`uavsearch sitl`: a second one on the same instance fails clearly; the field file it writes."""
+
+import json
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from missions.cli import app
+from sim.mavlink import Sitl, SitlConfig
+
+runner = CliRunner()
+
+
+def test_second_sitl_on_the_same_instance_is_refused(tmp_path: Path) -> None:
+    with Sitl(SitlConfig(instance=34, physics="kinematic", speedup=2.0, gcs_remote_port=14584)):
+        r = runner.invoke(app, ["sitl", "--instance", "34", "--physics", "kinematic", "--duration", "1",
+                                "--field-out", str(tmp_path / "f.json")])
+    text = " ".join(r.output.replace("│", " ").split())
+    assert r.exit_code == 2 and "14614 (API link of instance 34) is taken" in text, r.output
+    assert not (tmp_path / "f.json").exists()
+
+
+def test_sitl_writes_the_field_the_companion_needs(tmp_path: Path) -> None:
+    r = runner.invoke(app, ["sitl", "--instance", "35", "--physics", "kinematic", "--speedup", "0", "--duration", "1",
+                            "--width", "40", "--height", "30", "--targets", "7", "--motion", "herd",
+                            "--lat", "10.5", "--field-out", str(tmp_path / "f.json")])
+    assert r.exit_code == 0, r.output
+    assert "uavsearch run --field" in r.output and "40 x 30 cells" in r.output
+    d = json.loads((tmp_path / "f.json").read_text())
+    assert (d["width"], d["height"], d["targets"], d["motion"], d["origin"]["lat"]) == (40, 30, 7, "herd", 10.5)
+    assert d["connect"] == "udpin:0.0.0.0:14575" and d["provenance"]["sitl"]["geofence"]["max_horizontal_m"] > 100
+    r = runner.invoke(app, ["sitl", "--cell-m", "3"])
+    assert r.exit_code == 2 and "--cell-m" in r.output
