@@ -42,6 +42,11 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
+def _bclip(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """np.clip without its Python-level dispatch (which costs ten ufunc calls on small arrays)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
 class CascadedController:
     """One vehicle. Rotation matrices are PyBullet's getMatrixFromQuaternion: 9 floats, row
     major, body to world."""
@@ -149,48 +154,55 @@ class BatchController:
         h = np.hypot(v[:, 0], v[:, 1])
         scale = np.where(h > vmax, vmax / np.maximum(h, 1e-300), 1.0)
         v[:, :2] *= scale[:, None]
-        np.clip(v[:, 2], -g.max_descent, g.max_climb, out=v[:, 2])
+        v[:, 2] = _bclip(v[:, 2], -g.max_descent, g.max_climb)
         return v
 
     def thrust_and_torque(
         self, rot: np.ndarray, vel: np.ndarray, omega_body: np.ndarray, vel_sp: np.ndarray, yaw_sp: np.ndarray,
         dt: float,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(N,) thrusts and (N, 3) body torques."""
+        """(N,) thrusts and (N, 3) body torques. Written component by component on (N,)
+        arrays: with tens of vehicles every numpy call costs more than its arithmetic, and
+        stack, einsum and cross cost several plain ones."""
         g = self.g
         err = vel_sp - vel
-        self.vel_int = np.clip(self.vel_int + np.where(np.abs(err) < 0.5, err, 0.0) * dt, -2.0, 2.0)
-        acc = g.vel_p * err + g.vel_i * self.vel_int
-        az = np.clip(acc[:, 2], -0.7 * G, 1.0 * G)
+        vi = self.vel_int + err * dt * (np.abs(err) < 0.5)  # integrate only near the setpoint
+        vi = _bclip(vi, -2.0, 2.0)
+        self.vel_int = vi
+        acc = g.vel_p * err + g.vel_i * vi
+        az = _bclip(acc[:, 2], -0.7 * G, 1.0 * G)
         hmax = math.tan(g.max_tilt) * (G + az)
         h = np.hypot(acc[:, 0], acc[:, 1])
-        acc[:, :2] *= np.where(h > hmax, hmax / np.maximum(h, 1e-300), 1.0)[:, None]
-        acc[:, 2] = az + G
-        f = self.m * acc
-        thrust = np.einsum("ni,ni->n", f, rot[:, :, 2])
-        z = f / np.sqrt(np.einsum("ni,ni->n", f, f))[:, None]
+        ms = self.m * np.minimum(1.0, hmax / np.maximum(h, 1e-300))  # tilt limit
+        fx, fy, fz = ms * acc[:, 0], ms * acc[:, 1], self.m * (az + G)
+        r00, r01, r02 = rot[:, 0, 0], rot[:, 0, 1], rot[:, 0, 2]
+        r10, r11, r12 = rot[:, 1, 0], rot[:, 1, 1], rot[:, 1, 2]
+        r20, r21, r22 = rot[:, 2, 0], rot[:, 2, 1], rot[:, 2, 2]
+        thrust = fx * r02 + fy * r12 + fz * r22
+        inv = 1.0 / np.sqrt(fx * fx + fy * fy + fz * fz)
+        zx, zy, zz = fx * inv, fy * inv, fz * inv
         c, s = np.cos(yaw_sp), np.sin(yaw_sp)
-        y = np.stack([-z[:, 2] * s, z[:, 2] * c, z[:, 0] * s - z[:, 1] * c], axis=1)
-        n = np.sqrt(np.einsum("ni,ni->n", y, y))
+        yx, yy, yz = -zz * s, zz * c, zx * s - zy * c
+        n = np.sqrt(yx * yx + yy * yy + yz * yz)
         ok = n > 1e-6
-        y = np.where(ok[:, None], y / np.where(ok, n, 1.0)[:, None],
-                     np.stack([-s, c, np.zeros_like(s)], axis=1))
-        x = np.stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
-                      y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]], axis=1)
-        r0, r1, r2 = rot[:, :, 0], rot[:, :, 1], rot[:, :, 2]
-
-        def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-            return np.einsum("ni,ni->n", a, b)
-
-        e21 = 0.5 * (dot(z, r1) - dot(r2, y))
-        e02 = 0.5 * (dot(x, r2) - dot(r0, z))
-        e10 = 0.5 * (dot(y, r0) - dot(r1, x))
-        rate_sp = -g.att_p * np.stack([e21, e02, e10], axis=1)
-        np.clip(rate_sp[:, 2], -g.max_yaw_rate, g.max_yaw_rate, out=rate_sp[:, 2])
+        if ok.all():
+            yx, yy, yz = yx / n, yy / n, yz / n
+        else:  # force along the yaw axis: any heading will do
+            safe = np.where(ok, n, 1.0)
+            yx, yy, yz = np.where(ok, yx / safe, -s), np.where(ok, yy / safe, c), np.where(ok, yz / safe, 0.0)
+        xx, xy, xz = yy * zz - yz * zy, yz * zx - yx * zz, yx * zy - yy * zx
+        e21 = (zx * r01 + zy * r11 + zz * r21) - (r02 * yx + r12 * yy + r22 * yz)
+        e02 = (xx * r02 + xy * r12 + xz * r22) - (r00 * zx + r10 * zy + r20 * zz)
+        e10 = (yx * r00 + yy * r10 + yz * r20) - (r01 * xx + r11 * xy + r21 * xz)
+        k = -0.5 * g.att_p
+        rate_sp = np.empty_like(err)
+        rate_sp[:, 0], rate_sp[:, 1] = k * e21, k * e02
+        rate_sp[:, 2] = _bclip(k * e10, -g.max_yaw_rate, g.max_yaw_rate)
         w = omega_body
         hw = w @ self.J.T
-        gyro = np.stack([w[:, 1] * hw[:, 2] - w[:, 2] * hw[:, 1], w[:, 2] * hw[:, 0] - w[:, 0] * hw[:, 2],
-                         w[:, 0] * hw[:, 1] - w[:, 1] * hw[:, 0]], axis=1)
-        torque = (g.rate_p * (rate_sp - w)) @ self.J.T + gyro
-        np.clip(torque[:, 2], -g.max_yaw_torque, g.max_yaw_torque, out=torque[:, 2])
+        torque = (g.rate_p * (rate_sp - w)) @ self.J.T
+        torque[:, 0] += w[:, 1] * hw[:, 2] - w[:, 2] * hw[:, 1]
+        torque[:, 1] += w[:, 2] * hw[:, 0] - w[:, 0] * hw[:, 2]
+        torque[:, 2] += w[:, 0] * hw[:, 1] - w[:, 1] * hw[:, 0]
+        torque[:, 2] = _bclip(torque[:, 2], -g.max_yaw_torque, g.max_yaw_torque)
         return np.maximum(thrust, 0.0), torque

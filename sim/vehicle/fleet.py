@@ -21,7 +21,7 @@ import numpy as np
 import pybullet as p
 
 from .controller import BatchController, Gains
-from .frames import enu_yaw_to_ned, ned_yaw_to_enu
+from .frames import ned_yaw_to_enu
 from .model import VehicleState
 from .quadrotor import _WORLD_FRAME, PHYSICS_HZ, Airframe
 
@@ -158,66 +158,79 @@ class QuadrotorFleet:
         self._update_states()
 
     def _read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        cid = self.cid
-        poses = [p.getBasePositionAndOrientation(b, cid) for b in self.bodies]
-        vels = [p.getBaseVelocity(b, cid) for b in self.bodies]
-        pos = np.array([x[0] for x in poses])
-        quat = np.array([x[1] for x in poses])
-        lin = np.array([v[0] for v in vels])
-        ang = np.array([v[1] for v in vels])
-        return pos, quat, lin, ang
+        """(N, 3) positions, (N, 3, 3) rotations, (N, 3) linear and angular velocities (ENU),
+        gathered into one flat list and one array: PyBullet answers per body."""
+        cid, flat = self.cid, []
+        for b in self.bodies:
+            pos, quat = p.getBasePositionAndOrientation(b, cid)
+            lin, ang = p.getBaseVelocity(b, cid)
+            flat += pos
+            flat += lin
+            flat += ang
+            flat += p.getMatrixFromQuaternion(quat)
+        a = np.array(flat).reshape(self.n, 18)
+        return a[:, 0:3], a[:, 9:18].reshape(self.n, 3, 3), a[:, 3:6], a[:, 6:9]
 
     def _substep(self) -> None:
         h, af = 1.0 / PHYSICS_HZ, self.af
-        pos, quat, lin, ang = self._read()
-        rot = _quat_to_rot(quat)
+        pos, rot, lin, ang = self._read()
         flying = self.armed & (self.mode != IDLE)
-        w_cmd = np.where(self.armed, 0.15 * af.max_omega, 0.0)[:, None] * np.ones(4)
+        w_cmd = np.repeat((self.armed * (0.15 * af.max_omega))[:, None], 4, axis=1)  # idle spin, or stopped
         if flying.any():
-            wb = np.einsum("nki,nk->ni", rot, ang)
+            wb = (ang[:, :, None] * rot).sum(axis=1)  # R^T w, per vehicle
             vel_sp = self.ctrl.velocity_setpoint(pos, self.target, self.speed)
-            land_sp = np.where(pos[:, 2] > 1.0, -0.7, -0.4)
-            vel_sp = np.where((self.mode == VELOCITY)[:, None], self.vel_cmd, vel_sp)
-            is_land = self.mode == LAND
-            vel_sp[is_land] = 0.0
-            vel_sp[is_land, 2] = land_sp[is_land]
-            held = self.ctrl.vel_int.copy()
+            velocity = self.mode == VELOCITY
+            if velocity.any():
+                vel_sp[velocity] = self.vel_cmd[velocity]
+            land = self.mode == LAND
+            if land.any():  # hold horizontal position, descend
+                vel_sp[land, :2] = 0.0
+                vel_sp[land, 2] = np.where(pos[land, 2] > 1.0, -0.7, -0.4)
+            held = self.ctrl.vel_int
             thrust, torque = self.ctrl.thrust_and_torque(rot, lin, wb, vel_sp, self.yaw, h)
-            self.ctrl.vel_int[~flying] = held[~flying]  # only flying vehicles integrate
-            f = np.concatenate([thrust[:, None], torque], axis=1) @ self._alloc_inv_t
-            w_fly = np.sqrt(np.clip(f, 0.0, None) / af.kf)
-            w_cmd = np.where(flying[:, None], w_fly, w_cmd)
-        np.clip(w_cmd, 0.0, af.max_omega, out=w_cmd)
+            if not flying.all():  # only flying vehicles integrate
+                self.ctrl.vel_int[~flying] = held[~flying]
+            f = thrust[:, None] * self._alloc_inv_t[0] + torque @ self._alloc_inv_t[1:]
+            w_fly = np.sqrt(np.maximum(f, 0.0) * (1.0 / af.kf))
+            w_cmd[flying] = w_fly[flying]
+        np.minimum(w_cmd, af.max_omega, out=w_cmd)
         self.omega += (w_cmd - self.omega) * min(1.0, h / af.motor_tau)
         q = self.omega * self.omega
-        total = af.kf * q.sum(axis=1)
         body_torque = q @ self._rotor_torque
-        force = total[:, None] * rot[:, :, 2] - af.drag * lin
-        torque = np.einsum("nij,nj->ni", rot, body_torque)
+        force = (af.kf * q.sum(axis=1))[:, None] * rot[:, :, 2] - af.drag * lin
+        torque = (rot * body_torque[:, None, :]).sum(axis=2)
         cid = self.cid
         for b, fo, to, po in zip(self.bodies, force.tolist(), torque.tolist(), pos.tolist(), strict=True):
             p.applyExternalForce(b, -1, fo, po, _WORLD_FRAME, cid)
             p.applyExternalTorque(b, -1, to, _WORLD_FRAME, cid)
         p.stepSimulation(cid)
         self.time += h
-        touch = (self.mode == LAND) & self.armed & (pos[:, 2] < af.size[2] / 2 + 0.03) & (np.abs(lin[:, 2]) < 0.2)
-        for i in np.flatnonzero(touch):
-            self.disarm(int(i), force=True)
+        landing = (self.mode == LAND) & self.armed
+        if landing.any():
+            touch = landing & (pos[:, 2] < af.size[2] / 2 + 0.03) & (np.abs(lin[:, 2]) < 0.2)
+            for i in np.flatnonzero(touch):
+                self.disarm(int(i), force=True)
 
     def _update_states(self) -> None:
-        pos, quat, lin, ang = self._read()
-        rot = _quat_to_rot(quat)
-        wb = np.einsum("nki,nk->ni", rot, ang)
+        pos, rot, lin, ang = self._read()
+        wb = (ang[:, :, None] * rot).sum(axis=1)
         ground_z = self.af.size[2] / 2
         local = pos - self.offset
+        # fresh arrays each update: every state gets rows of its own, never shared with the next
+        ned = np.stack([local[:, 1], local[:, 0], ground_z - local[:, 2]], axis=1)
+        vel = np.stack([lin[:, 1], lin[:, 0], -lin[:, 2]], axis=1)
+        rates = wb * [1.0, -1.0, -1.0]  # FLU -> FRD
+        # roll, pitch, yaw of the FLU body in ENU from R = Rz(yaw) Ry(pitch) Rx(roll)
+        roll = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
+        pitch = np.arcsin(np.clip(-rot[:, 2, 0], -1.0, 1.0))
+        yaw = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+        yaw_ned = (np.pi / 2 - yaw + np.pi) % (2 * np.pi) - np.pi
+        rpy = np.stack([roll, -pitch, yaw_ned], axis=1)
+        landed = ((pos[:, 2] < ground_z + 0.05) & (np.abs(lin[:, 2]) < 0.3)).tolist()
         for i, s in enumerate(self.states):
-            roll, pitch, yaw = p.getEulerFromQuaternion(quat[i].tolist())
             s.time_s = self.time
-            s.position_ned = np.array([local[i, 1], local[i, 0], -(local[i, 2] - ground_z)])
-            s.velocity_ned = np.array([lin[i, 1], lin[i, 0], -lin[i, 2]])
-            s.attitude_rpy = np.array([roll, -pitch, enu_yaw_to_ned(yaw)])
-            s.body_rates = np.array([wb[i, 0], -wb[i, 1], -wb[i, 2]])
-            s.landed = bool(pos[i, 2] < ground_z + 0.05 and abs(lin[i, 2]) < 0.3)
+            s.position_ned, s.velocity_ned, s.attitude_rpy, s.body_rates = ned[i], vel[i], rpy[i], rates[i]
+            s.landed = landed[i]
             s.battery_voltage = 14.0 + 2.8 * s.battery_remaining
 
     @property
@@ -228,17 +241,6 @@ class QuadrotorFleet:
     def close(self) -> None:
         if p.isConnected(self.cid):
             p.disconnect(self.cid)
-
-
-def _quat_to_rot(q: np.ndarray) -> np.ndarray:
-    """(N, 4) PyBullet quaternions (x, y, z, w) -> (N, 3, 3) body-to-world rotations."""
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    xx, yy, zz, xy, xz, yz, wx, wy, wz = x * x, y * y, z * z, x * y, x * z, y * z, w * x, w * y, w * z
-    return np.stack([
-        1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy),
-        2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx),
-        2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy),
-    ], axis=1).reshape(-1, 3, 3)
 
 
 class KinematicFleet:
