@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -41,16 +43,27 @@ def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: 
     plt.close(fig)
 
 
+@contextmanager
+def _nothing() -> Iterator[None]:
+    yield None
+
+
 def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path | None = None,
-               grid: GridConfig | None = None, instance: int = 0, max_moves: int | None = None) -> dict[str, Any]:
-    """Start SITL in-process, fly the shipped policy over MAVLink, write report + plot + tlog."""
+               grid: GridConfig | None = None, instance: int = 0, max_moves: int | None = None,
+               policy: str | None = None, on_abort: str = "rtl", progress: bool = False) -> dict[str, Any]:
+    """Start SITL in-process, fly a policy (default: the best shipped one) over MAVLink, write
+    report + plot + tlog. Any failure or Ctrl-C brings the vehicle down first (missions.guarded);
+    report['outcome'] says how the flight ended, report['error'] what stopped it, if anything."""
     from autopilot_bridge.link import VehicleLink
     from autopilot_bridge.service import PolicyService, SearchSpec, save_log
+    from missions.flight_policy import flight_policy
+    from missions.guarded import EXIT_OK, EXIT_SHORT, guarded_search
+    from missions.progress import FlightProgress
     from policy.groundtruth import optimal_lengths
-    from policy.nn import load_policy
     from sim.mavlink import Sitl, SitlConfig
 
     grid = grid or GridConfig()
+    pol = flight_policy(policy, checkpoint, grid, seed)  # before anything starts: can it fly this field?
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     cfg = SitlConfig(instance=instance, speedup=speedup, physics="pybullet", camera=True, grid=grid,
@@ -67,22 +80,14 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
     link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
-    policy = load_policy(checkpoint, cfg=grid)
     spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves)
-    service = PolicyService(link, policy, spec, seed=seed)
     t0 = time.monotonic()
-    error = None
     try:
-        service.take_off()
-        log = service.run()
-        service.land()
-    except Exception as e:  # the report says what went wrong; the vehicle still lands
-        error = f"{type(e).__name__}: {e}"
-        log = service.log
-        try:
-            link.land()
-        except Exception:  # noqa: BLE001 - best effort
-            pass
+        with FlightProgress(f"flight ({pol.name})") if progress else _nothing() as bar:
+            service = PolicyService(link, pol, spec, seed=seed, on_progress=bar)
+            end = guarded_search(service, link, on_abort)
+        log = end.log
+        error = None if end.exit_code in (EXIT_OK, EXIT_SHORT) else end.cause
     finally:
         stop.set()
         watcher.join()
@@ -95,8 +100,9 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     truly = [bool(len(tr) and np.min(np.max(np.abs(tr - t), axis=1)) < 0.5) for t in targets] if grid.motion == "static" else []
     moves = max(len(log.cells) - 1, 0)
     optimal = int(optimal_lengths(sitl.episode)[0])
-    save_log(log, out / "search_log.json")
+    save_log(log, out / "search_log.json", outcome=end.to_dict())
     report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": "pybullet"},
+                   policy=pol.name, outcome=end.to_dict(),
                    moves=moves, optimal_moves=optimal, ratio_to_optimal=moves / max(optimal, 1),
                    targets=int(grid.n_targets), believed_found=len(log.believed_found),
                    truly_found=int(sum(truly)), frames=log.frames, frames_missing=log.frames_missing,

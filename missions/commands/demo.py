@@ -12,6 +12,8 @@ from pathlib import Path
 
 import typer
 
+from autopilot_bridge.abort import AbortAction
+
 DEFAULT_POLICIES = ["oracle", "cu", "ns", "frontier", "lawnmower", "random"]
 
 
@@ -22,7 +24,10 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(2018, help="Seed of the test episodes and of the flight's field."),
         out: Path = typer.Option(Path("out/demo"), help="Where the report goes."),
         fly: bool = typer.Option(True, "--fly/--no-fly", help="Also fly the search on the SITL vehicle."),
-        speedup: float = typer.Option(10.0, help="Simulation speed-up for the flight."),
+        speedup: float = typer.Option(10.0, min=0.1, help="Simulation speed-up for the flight."),
+        policy: str | None = typer.Option(None, "--policy", help="The policy that flies [default: the best shipped one]."),
+        on_abort: AbortAction = typer.Option(
+            AbortAction.rtl, "--on-abort", help="What the vehicle does when the flight fails or is interrupted."),
     ) -> None:
         """Evaluate the policies, then fly a search on the simulated vehicle; write a report."""
         from policy.baselines import known_policies
@@ -42,9 +47,20 @@ def register(app: typer.Typer) -> None:
             from missions.flight import fly_search
 
             typer.echo("flying the search on the SITL vehicle (PyBullet, MAVLink, shipped policy)...")
-            r = fly_search(out / "flight", seed=seed, speedup=speedup)
+            from missions.flight_policy import PolicyUnfit
+
+            try:
+                r = fly_search(out / "flight", seed=seed, speedup=speedup, policy=policy, on_abort=on_abort.value,
+                               progress=True)
+            except PolicyUnfit as e:
+                raise typer.BadParameter(str(e), param_hint="--policy") from e
             found = f"{r['truly_found']}/{r['targets']} targets found (truth), {r['believed_found']} believed"
             typer.echo(f"flight: {r['moves']} moves (optimal {r['optimal_moves']}), {found}, "
                        f"{r['simulated_s']:.0f} s simulated in {r['wall_s']:.0f} s"
                        + (f"; error: {r['error']}" if r["error"] else ""))
             typer.echo(f"flight report: {(out / 'flight').resolve()}/report.json, search.png, flight.tlog")
+            code = r["outcome"]["exit_code"]
+            if r["error"]:
+                typer.echo(f"error: the flight stopped ({r['error']}); the vehicle was sent to {on_abort.value}: "
+                           f"{r['outcome']['touchdown']}", err=True)
+                raise typer.Exit(code)
