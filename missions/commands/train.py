@@ -1,5 +1,6 @@
-"""`uavsearch train`: fit the dual-stream network (or SSN) on a dataset with k-fold CV, or the DRQN
-baseline by reward in the grid world (no dataset)."""
+"""`uavsearch train`: fit the dual-stream network (or SSN) on a dataset with k-fold CV, the DRQN
+baseline by reward in the grid world (no dataset), or the search network by DAgger + PPO (no
+dataset either: the belief planner labels the states the student reaches)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ class Model(StrEnum):
     dualstream = "dualstream"
     ssn = "ssn"
     drqn = "drqn"
+    searchnet = "searchnet"
 
 
 class Arch(StrEnum):
@@ -60,6 +62,11 @@ def register(app: typer.Typer) -> None:
                                                help="Send folds to this ray cluster (dataset on a shared path)."),
         ddp: int = typer.Option(0, "--ddp", min=0, help="DDP processes (GPUs) per fold; 0: off."),
         episodes: int = typer.Option(20_000, "--episodes", min=1, help="drqn: training episodes (the paper's 20k)."),
+        dagger_iterations: int = typer.Option(6, "--dagger-iterations", min=1, help="searchnet: DAgger iterations."),
+        dagger_episodes: int = typer.Option(400, "--dagger-episodes", min=1,
+                                            help="searchnet: student rollouts per DAgger iteration."),
+        ppo_updates: int = typer.Option(20, "--ppo-updates", min=0, help="searchnet: PPO updates after DAgger."),
+        ppo_episodes: int = typer.Option(128, "--ppo-episodes", min=1, help="searchnet: episodes per PPO update."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -67,6 +74,10 @@ def register(app: typer.Typer) -> None:
         reward in the grid world set by the grid options (OUT/drqn.pt)."""
         if model is Model.drqn:
             _train_drqn(out, episodes, seed, resume, threads, grid)
+            return
+        if model is Model.searchnet:
+            _train_searchnet(out, grid, seed, resume, threads, workers, ray_address, dagger_iterations,
+                             dagger_episodes, ppo_updates, ppo_episodes, epochs if epochs != 50 else None)
             return
         if dataset is None:
             raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
@@ -88,6 +99,29 @@ def register(app: typer.Typer) -> None:
             f"{out}/model.pt: CV accuracy {100 * summary['cv_acc_mean']:.2f} ± {100 * summary['cv_acc_sd']:.2f} % "
             f"over {len(summary['folds'])} fold(s); best fold {summary['best_fold']}"
         )
+
+
+def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threads: int | None, workers: int,
+                     ray_address: str | None, iterations: int, dagger_episodes: int, ppo_updates: int,
+                     ppo_episodes: int, epochs: int | None) -> None:
+    """DAgger on the belief planner, then PPO; no dataset (the teacher labels the student's own states)."""
+    import torch
+
+    from policy.nn import CheckpointError
+    from policy.searchnet.dagger import DaggerConfig
+    from policy.searchnet.ppo import PpoConfig
+    from policy.searchnet.train import SearchTrainConfig, train_searchnet
+
+    torch.set_num_threads(threads or 1)
+    dc = DaggerConfig(iterations=iterations, episodes=dagger_episodes, chunks=max(workers, 1),
+                      **({"epochs": epochs} if epochs else {}))
+    tc = SearchTrainConfig(dagger=dc, ppo=PpoConfig(episodes=ppo_episodes), ppo_updates=ppo_updates, seed=seed)
+    try:
+        path = train_searchnet(grid, out, tc, resume=resume, workers=workers, ray_address=ray_address,
+                               log=typer.echo)
+    except CheckpointError as e:
+        raise typer.BadParameter(str(e), param_hint="--resume") from e
+    typer.echo(f"{path}: the best search network (evaluate: uavsearch eval --policy searchnet --checkpoint {path})")
 
 
 def _train_drqn(out: Path, episodes: int, seed: int, resume: bool, threads: int | None, grid: GridConfig) -> None:

@@ -90,6 +90,21 @@ def _belief(cfg: GridConfig | None = None, prior: Any = None, loop_guard: bool |
     return BeliefPlanner(prior=prior)
 
 
+def _searchnet(cfg: GridConfig | None = None, checkpoint: Any = None, **_: Any) -> Policy:
+    """The shipped search network for the field's setting when one exists (static random
+    otherwise: the network runs on any field size and motion)."""
+    from ..nn import shipped_checkpoint
+    from ..searchnet import load_searchnet_policy
+
+    if checkpoint is None:
+        checkpoint = shipped_checkpoint("searchnet_static_random")
+        if cfg is not None:
+            specific = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}_{cfg.width}x{cfg.height}")
+            generic = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}")
+            checkpoint = next((p for p in (specific, generic) if p.is_file()), checkpoint)
+    return load_searchnet_policy(checkpoint, cfg)
+
+
 register_policy("oracle", _plans("pt"), "optimal PT with full knowledge of the targets (upper bound)")
 register_policy("cu", _plans("cu"), "closest unvisited target, with full knowledge (Eq. 2-3)")
 register_policy("ns", _simple("ns", "NaivePolicy"), "naive solution: visible target, else vote (paper V-D)")
@@ -100,6 +115,8 @@ register_policy("random", _simple("random_policy", "RandomPolicy"), "uniformly r
 register_policy("drqn", _drqn, "DRQN baseline trained by reward (shipped checkpoint or --checkpoint)")
 register_policy("dualstream", _network("dualstream_static_random"),
                 "the dual-stream network (shipped checkpoint or --checkpoint)")
+register_policy("searchnet", _searchnet,
+                "search network on the belief state (DAgger on `belief`, then PPO; shipped or --checkpoint)")
 register_policy("ssn", _network("ssn_static_random"),
                 "split-stream baseline network (shipped checkpoint or --checkpoint)")
 register_policy("belief", _belief, "belief-space planner: exact tour once all are sighted, else info per step")

@@ -1,0 +1,99 @@
+"""DAgger's data: the student drives (mixed with the teacher at rate beta), the teacher labels.
+
+Every state the student reaches is labelled with the action the teacher would take there: the
+teacher is a belief-space policy too, so it is run on the same observation stream and its
+answer at each step is the label, whoever actually moved. One task is a chunk of episodes with
+its own seed, so chunks fan out over processes or ray workers and give the same data anywhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
+
+from ..base import observe
+from ..belief import BeliefState
+from .config import SearchNetConfig
+from .model import SearchNet
+from .policy import obs_tensors
+
+N_ACTIONS = 5
+
+
+@dataclass(frozen=True)
+class RolloutTask:
+    grid: dict
+    episodes: int
+    seed: int
+    #: probability that the teacher's action is the one executed (per step); 1.0: pure teacher
+    beta: float
+    #: the student (None: no student yet, the teacher drives)
+    model_cfg: dict | None = None
+    state_dict: dict[str, Any] | None = None
+    #: the placement prior the teacher may use (estimated from training episodes); never the student's
+    teacher_prior: np.ndarray | None = None
+    max_steps: int | None = None
+
+
+def pad_valid(valid: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(valid), N_ACTIONS), dtype=bool)
+    out[:, : valid.shape[1]] = valid
+    return out
+
+
+def collect(task: RolloutTask) -> dict[str, np.ndarray]:
+    """Roll out task.episodes episodes; return the student's states with the teacher's labels:
+    planes (N, C, h, w) float16, positions (N, 2) int16, valid (N, 5) bool, labels (N,) int64,
+    and per episode moves and success."""
+    from ..baselines.registry import make_policy
+
+    torch.set_num_threads(1)
+    cfg = GridConfig.from_dict(task.grid)
+    n = task.episodes
+    ep = sample_episodes(cfg, n, task.seed)
+    world = BatchGridWorld(ep, task.seed)
+    teacher = make_policy("belief", cfg, prior=task.teacher_prior)
+    teacher.reset(cfg, n, task.seed)
+    student = None
+    if task.state_dict is not None:
+        student = SearchNet(SearchNetConfig.from_dict(task.model_cfg))
+        student.load_state_dict({k: torch.as_tensor(v) for k, v in task.state_dict.items()})
+        student.eval()
+    belief = BeliefState(cfg, n)
+    rng = np.random.default_rng([task.seed, 0xDA66E5])
+    limit = task.max_steps or cfg.t_e + 1
+    out: dict[str, list[np.ndarray]] = {"planes": [], "positions": [], "valid": [], "labels": []}
+    for _ in range(limit):
+        if world.done.all():
+            break
+        obs = observe(world)
+        label = np.asarray(teacher.act(obs), dtype=np.int64)
+        belief.update(obs)
+        planes = belief.planes()
+        act = obs.active
+        valid = pad_valid(obs.valid)
+        out["planes"].append(planes[act].astype(np.float16))
+        out["positions"].append(obs.positions[act].astype(np.int16))
+        out["valid"].append(valid[act])
+        out["labels"].append(label[act])
+        a = label.copy()
+        if student is not None and task.beta < 1.0:
+            with torch.inference_mode():
+                x, mask = obs_tensors(planes, obs.positions, valid, N_ACTIONS)
+                mine = student(x, mask).argmax(dim=1).numpy()
+            use_student = rng.random(n) >= task.beta
+            a = np.where(use_student, mine, label)
+        world.step(np.minimum(a, cfg.n_actions - 1))
+    data = {k: np.concatenate(v) for k, v in out.items()}
+    data["moves"] = world.t.copy()
+    data["success"] = world.success.copy()
+    return data
+
+
+def merge(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
