@@ -69,7 +69,7 @@ def estimate_teacher_prior(grid: GridConfig, seed_base: int) -> np.ndarray:
     """The placement prior as a teacher may know it: counted from training episodes only."""
     from ..belief import estimate_prior
 
-    return estimate_prior(grid, 4000, seed_base - 1)
+    return estimate_prior(sample_episodes(grid, 4000, seed_base - 1), grid)
 
 
 def validate(model: SearchNet, grid: GridConfig, episodes: int, seed: int = VAL_SEED) -> dict[str, float]:
