@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -54,7 +55,7 @@ class DaggerConfig:
 
 
 def rollout_tasks(dc: DaggerConfig, grid: GridConfig, i: int, model: SearchNet | None,
-                  teacher_prior: np.ndarray | None) -> list[RolloutTask]:
+                  teacher_prior: Any) -> list[RolloutTask]:
     """Iteration i's tasks; the seeds depend only on (seed_base, i, chunk), never on the worker."""
     beta = dc.beta(i) if model is not None else 1.0
     sd = None if model is None else {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
@@ -97,7 +98,7 @@ def fit(model: SearchNet, opt: torch.optim.Optimizer, data: dict[str, np.ndarray
     return acc
 
 
-def run_dagger(model: SearchNet, grid: GridConfig, dc: DaggerConfig, teacher_prior: np.ndarray | None = None,
+def run_dagger(model: SearchNet, grid: GridConfig, dc: DaggerConfig, teacher_prior: Any = None,
                start: int = 0, data: dict[str, np.ndarray] | None = None, opt: torch.optim.Optimizer | None = None,
                workers: int = 1, ray_address: str | None = None,
                on_iteration: Callable[[int, dict, dict[str, np.ndarray]], None] | None = None) -> dict[str, np.ndarray]:

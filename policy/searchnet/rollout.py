@@ -35,8 +35,9 @@ class RolloutTask:
     #: the student (None: no student yet, the teacher drives)
     model_cfg: dict | None = None
     state_dict: dict[str, Any] | None = None
-    #: the placement prior the teacher may use (estimated from training episodes); never the student's
-    teacher_prior: np.ndarray | None = None
+    #: the placement prior the teacher may use ('model', an (h, w) array or a dataset path, see
+    #: policy.planner.resolve_prior); never the student's
+    teacher_prior: Any = None
     max_steps: int | None = None
 
 

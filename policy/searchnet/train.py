@@ -48,8 +48,9 @@ class SearchTrainConfig:
     conv2: int = 32
     hidden: int = 64
     seed: int = 0
-    #: the teacher plans with the placement prior estimated from training episodes (the student never gets it)
-    teacher_prior: bool = True
+    #: the teacher plans with the placement prior and pair correlation counted from sampled
+    #: episodes of the placement model ('model'; None: uniform). The student never gets it.
+    teacher_prior: str | None = "model"
     val_episodes: int = 400
     #: validate every this many PPO updates
     val_every: int = 2
@@ -63,13 +64,6 @@ class SearchTrainConfig:
 
     def net(self) -> SearchNetConfig:
         return SearchNetConfig(BELIEF_CHANNELS, conv1=self.conv1, conv2=self.conv2, hidden=self.hidden)
-
-
-def estimate_teacher_prior(grid: GridConfig, seed_base: int) -> np.ndarray:
-    """The placement prior as a teacher may know it: counted from training episodes only."""
-    from ..belief import estimate_prior
-
-    return estimate_prior(sample_episodes(grid, 4000, seed_base - 1), grid)
 
 
 def validate(model: SearchNet, grid: GridConfig, episodes: int, seed: int = VAL_SEED) -> dict[str, float]:
@@ -121,7 +115,7 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
             with np.load(data_path) as z:
                 data = {k: z[k] for k in z.files}
         log(f"resuming {out}: stage {st['stage']}, step {st['next']}")
-    prior = estimate_teacher_prior(grid, tc.dagger.seed_base) if tc.teacher_prior else None
+    prior = tc.teacher_prior
     t0 = time.monotonic() - st["seconds"]
 
     def save_state() -> None:
