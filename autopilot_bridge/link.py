@@ -8,6 +8,8 @@ never mistakes a refusal for success.
 
 from __future__ import annotations
 
+import logging
+import re
 import threading
 import time
 from dataclasses import dataclass, field
@@ -19,6 +21,30 @@ from . import px4_modes
 from .tlog import CompanionTlog
 
 mavlink = mavutil.mavlink
+log = logging.getLogger(__name__)
+STATUSTEXT_KEEP = 200  # the latest STATUSTEXTs kept in Telemetry (a chatty vehicle must not grow it)
+_NET_ADDRESS = re.compile(r"^(udpin|udpout|udp|udpbcast|tcp|tcpin):([^:]+):(\d{1,5})$")
+
+
+def check_address(address: str) -> None:
+    """A clear error for an address pymavlink would misread (it opens anything else as a serial
+    device): udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, or a serial device path."""
+    if address.startswith("/dev/") or address.upper().startswith("COM"):
+        return
+    m = _NET_ADDRESS.match(address)
+    if m is None or not 1 <= int(m.group(3)) <= 65535:
+        raise ValueError(f"bad MAVLink address {address!r}: expected udpin:HOST:PORT (listen, e.g. "
+                         "udpin:0.0.0.0:14540), udpout:HOST:PORT, tcp:HOST:PORT or a serial device /dev/...")
+
+
+@dataclass
+class LinkStats:
+    """What the link survived: the counts a lossy-link report shows."""
+
+    received: int = 0
+    rx_errors: int = 0  # exceptions raised while receiving or in a handler (the thread lives on)
+    command_retries: int = 0
+    foreign_datagrams: int = 0  # from addresses other than the vehicle's, dropped
 
 
 class LinkError(RuntimeError):
@@ -52,6 +78,18 @@ class Telemetry:
 
 
 class VehicleLink:
+    """The companion's link to one vehicle.
+
+    Robust against a bad radio: the receive thread survives anything a message or a handler
+    throws (counted in `stats.rx_errors` and logged); every command is resent with backoff until
+    its ACK arrives, and a MAV_RESULT_IN_PROGRESS is waited on, not resent. Once the vehicle's
+    first HEARTBEAT arrives, datagrams from any other address are dropped and nothing is sent
+    anywhere else (pymavlink's udpin answers everyone who ever sent it a byte). The link speaks
+    MAVLink 2 from the first packet, so a signing key is never lost in pymavlink's
+    MAVLink 1 -> 2 switch. It sends its own HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER) at 1 Hz,
+    which the vehicle's data-link-loss failsafe watches.
+    """
+
     def __init__(
         self,
         address: str = "udpin:0.0.0.0:14540",
@@ -60,26 +98,78 @@ class VehicleLink:
         tlog: Path | None = None,
         signing_key: bytes | None = None,
         tlog_meta: dict | None = None,
+        heartbeat_hz: float = 1.0,
     ) -> None:
+        check_address(address)
+        if signing_key is not None and len(signing_key) != 32:
+            raise ValueError("a MAVLink2 signing key is 32 bytes")
         self.conn = mavutil.mavlink_connection(
             address, source_system=source_system, source_component=source_component
         )
+        self._force_mavlink2(source_system, source_component)
+        self.stats = LinkStats()
+        self._vehicle_addr: tuple[str, int] | None = None
+        self._last_addr: tuple[str, int] | None = None
+        if isinstance(self.conn, mavutil.mavudp) and self.conn.udp_server:
+            self.conn.recv = self._recv_udp  # only the vehicle we connected to, once we know it
         # both directions of the link, in MAVProxy's .tlog format (pymavlink's own logfile
         # stays empty on UDP connections)
         self.tlog = CompanionTlog(tlog, tlog_meta) if tlog is not None else None
         if self.tlog is not None:
             self.conn.mav.set_send_callback(self.tlog.write_message)
         if signing_key is not None:
-            if len(signing_key) != 32:
-                raise ValueError("a MAVLink2 signing key is 32 bytes")
             self.conn.setup_signing(signing_key, sign_outgoing=True)
         self.telemetry = Telemetry()
         self._acks: dict[int, int] = {}
         self._ack_cv = threading.Condition()
+        self._send_lock = threading.Lock()  # pymavlink's MAVLink object is not thread-safe
         self._handlers: list = []
         self._stop = threading.Event()
         self._rx = threading.Thread(target=self._receive, name="mavlink-rx", daemon=True)
         self._rx.start()
+        self._hb_period = 1.0 / heartbeat_hz if heartbeat_hz > 0 else 0.0
+        self._hb = threading.Thread(target=self._heartbeats, name="mavlink-hb", daemon=True)
+        if self._hb_period:
+            self._hb.start()
+
+    def _force_mavlink2(self, sysid: int, compid: int) -> None:
+        """pymavlink starts a link in MAVLink 1 unless MAVLINK20 is set, and on the first v2
+        packet replaces its MAVLink object, dropping the signing setup: start in v2."""
+        from pymavlink.dialects.v20 import common as v20
+
+        if self.conn.WIRE_PROTOCOL_VERSION != "2.0":
+            self.conn.mav = v20.MAVLink(self.conn, srcSystem=sysid, srcComponent=compid)
+            self.conn.mav.robust_parsing = True
+            self.conn.WIRE_PROTOCOL_VERSION = "2.0"
+        self.conn.first_byte = False
+
+    def _recv_udp(self, n=None) -> bytes:
+        sock = self.conn.port
+        while True:
+            try:
+                data, addr = sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                return b""
+            except OSError:  # ECONNREFUSED and friends from an earlier send: not fatal
+                return b""
+            if self._vehicle_addr is not None and addr != self._vehicle_addr:
+                self.stats.foreign_datagrams += 1
+                continue
+            if self._vehicle_addr is None:
+                self.conn.clients.add(addr)
+                self.conn.clients_last_alive[addr] = time.time()
+            self._last_addr = addr
+            return data
+
+    def _lock_vehicle(self) -> None:
+        """From now on, talk to the address the vehicle's heartbeat came from, and only to it."""
+        addr = self._last_addr
+        if self._vehicle_addr is not None or addr is None or not isinstance(self.conn, mavutil.mavudp):
+            return
+        self._vehicle_addr = addr
+        self.conn.clients = {addr}
+        self.conn.clients_last_alive = {addr: time.time()}
+        log.info("link locked to the vehicle at %s:%d", *addr)
 
     # -- receiving -----------------------------------------------------------------------
     def add_handler(self, fn) -> None:
@@ -87,22 +177,47 @@ class VehicleLink:
         self._handlers.append(fn)
 
     def _receive(self) -> None:
+        """Never dies: whatever a message or a handler throws is counted, logged and survived."""
         while not self._stop.is_set():
             try:
                 msg = self.conn.recv_match(blocking=True, timeout=0.2)
-            except (OSError, ValueError):
+                if msg is None or msg.get_type() == "BAD_DATA":
+                    continue
+                self.stats.received += 1
+                if self.tlog is not None:
+                    self.tlog.write_message(msg)
+                self._on_message(msg)
+            except Exception as e:  # noqa: BLE001 - a receive thread that dies is a silent link
+                self._rx_error("receiving", e)
+                time.sleep(0.01)
                 continue
-            if msg is None or msg.get_type() == "BAD_DATA":
-                continue
-            if self.tlog is not None:
-                self.tlog.write_message(msg)
-            self._on_message(msg)
             for fn in list(self._handlers):
-                fn(msg)
+                try:
+                    fn(msg)
+                except Exception as e:  # noqa: BLE001
+                    self._rx_error(f"handler {getattr(fn, '__qualname__', fn)}", e)
+
+    def _rx_error(self, where: str, e: Exception) -> None:
+        self.stats.rx_errors += 1
+        n = self.stats.rx_errors
+        if str(n).rstrip("0") == "1":  # the 1st, 10th, 100th ...: logged, never flooding
+            log.warning("receive thread: %s raised %s: %s (%d errors so far)", where, type(e).__name__, e, n,
+                        exc_info=n == 1)
+
+    def _heartbeats(self) -> None:
+        while not self._stop.wait(self._hb_period):
+            try:
+                with self._send_lock:
+                    self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
+                                                 0, 0, mavlink.MAV_STATE_ACTIVE)
+            except Exception as e:  # noqa: BLE001 - a closed socket at shutdown
+                if not self._stop.is_set():
+                    log.warning("heartbeat send failed: %s", e)
 
     def _on_message(self, msg) -> None:
         t, kind = self.telemetry, msg.get_type()
-        if kind == "HEARTBEAT" and msg.type != mavlink.MAV_TYPE_GCS:
+        if kind == "HEARTBEAT" and msg.type != mavlink.MAV_TYPE_GCS and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:
+            self._lock_vehicle()
             t.heartbeat_time = time.monotonic()
             t.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
             t.mode = px4_modes.decode(msg.custom_mode)
@@ -134,6 +249,7 @@ class VehicleLink:
             t.battery_remaining = None if msg.battery_remaining < 0 else msg.battery_remaining / 100
         elif kind == "STATUSTEXT":
             t.statustext.append(msg.text)
+            del t.statustext[:-STATUSTEXT_KEEP]
 
     # -- waiting -------------------------------------------------------------------------
     def wait_for(self, predicate, timeout: float, what: str) -> None:
@@ -151,22 +267,37 @@ class VehicleLink:
         return self.conn.target_system or 1, self.conn.target_component or 1
 
     # -- commands ------------------------------------------------------------------------
-    def command(self, cmd: int, *params: float, timeout: float = 1.0, retries: int = 3) -> int:
-        """COMMAND_LONG with retries; returns MAV_RESULT_ACCEPTED or raises."""
+    def command(self, cmd: int, *params: float, timeout: float = 0.5, retries: int = 10,
+                progress_timeout: float = 30.0) -> int:
+        """COMMAND_LONG, resent (confirmation + 1) with a growing wait until its ACK arrives;
+        returns MAV_RESULT_ACCEPTED or raises CommandRejected / LinkError.
+
+        An ACK answers any copy of the command, so a late one for an earlier copy counts.
+        MAV_RESULT_IN_PROGRESS says the vehicle is working on it: we wait (up to
+        `progress_timeout`) for the final ACK instead of resending."""
         p = list(params) + [0.0] * (7 - len(params))
+        with self._ack_cv:
+            self._acks.pop(cmd, None)
+        wait = timeout
         for attempt in range(retries):
+            if attempt:
+                self.stats.command_retries += 1
+            with self._send_lock:
+                self.conn.mav.command_long_send(*self.target, cmd, min(attempt, 255), *p)
+            end = time.monotonic() + wait
             with self._ack_cv:
-                self._acks.pop(cmd, None)
-            self.conn.mav.command_long_send(*self.target, cmd, attempt, *p)
-            with self._ack_cv:
-                got = self._ack_cv.wait_for(lambda: cmd in self._acks, timeout)
-                if got:
+                while True:
+                    got = self._ack_cv.wait_for(lambda: cmd in self._acks, max(end - time.monotonic(), 0.0))
+                    if not got:
+                        break
                     result = self._acks.pop(cmd)
                     if result == mavlink.MAV_RESULT_IN_PROGRESS:
+                        end = time.monotonic() + progress_timeout  # working on it: wait, do not resend
                         continue
                     if result != mavlink.MAV_RESULT_ACCEPTED:
                         raise CommandRejected(cmd, result)
                     return result
+            wait = min(wait * 1.5, 3.0)
         raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries} tries")
 
     def arm(self, force: bool = False) -> None:
@@ -199,10 +330,11 @@ class VehicleLink:
         )
         if yaw != yaw:  # nan
             ignore |= mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-        self.conn.mav.set_position_target_local_ned_send(
-            0, *self.target, mavlink.MAV_FRAME_LOCAL_NED, ignore, n, e, d, 0, 0, 0, 0, 0, 0,
-            0 if yaw != yaw else yaw, 0,
-        )
+        with self._send_lock:
+            self.conn.mav.set_position_target_local_ned_send(
+                0, *self.target, mavlink.MAV_FRAME_LOCAL_NED, ignore, n, e, d, 0, 0, 0, 0, 0, 0,
+                0 if yaw != yaw else yaw, 0,
+            )
 
     def set_message_interval(self, msg_id: int, hz: float) -> None:
         self.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz if hz > 0 else -1)
@@ -213,6 +345,8 @@ class VehicleLink:
     def close(self) -> None:
         self._stop.set()
         self._rx.join(timeout=1.0)
+        if self._hb.is_alive():
+            self._hb.join(timeout=1.0)
         self.conn.close()
         if self.tlog is not None:
             self.tlog.close()

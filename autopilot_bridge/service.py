@@ -24,8 +24,8 @@ from sim.gridworld.geodesy import HomePosition
 
 from .detector import DetectorConfig, frame_to_view, valid_moves
 from .estimator import GpsEstimator
-from .images import FrameAssembler
-from .link import VehicleLink, mavlink
+from .images import FrameRequester
+from .link import VehicleLink
 from .probmap import ProbabilisticVisitationMap
 
 
@@ -62,28 +62,6 @@ class Progress:
     cell: tuple[int, int]
     elapsed_s: float
     position_sd_m: float
-
-
-class FrameRequester:
-    """Collects frames from the image transmission protocol on the link's receive thread."""
-
-    def __init__(self, link: VehicleLink) -> None:
-        self.link, self.asm = link, FrameAssembler()
-        self.latest: np.ndarray | None = None
-        self.event = threading.Event()
-        link.add_handler(self._on_message)
-
-    def _on_message(self, msg) -> None:
-        if msg.get_type() in ("DATA_TRANSMISSION_HANDSHAKE", "ENCAPSULATED_DATA"):
-            frame = self.asm.feed(msg)
-            if frame is not None:
-                self.latest = frame
-                self.event.set()
-
-    def request(self, timeout: float = 3.0) -> np.ndarray | None:
-        self.event.clear()
-        self.link.request_message(mavlink.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE)
-        return self.latest if self.event.wait(timeout) else None
 
 
 class PolicyService:

@@ -21,9 +21,13 @@ def encode_png(frame: np.ndarray) -> bytes:
 
 
 def frame_messages(mav: mavlink.MAVLink, frame: np.ndarray) -> list[mavlink.MAVLink_message]:
-    data = encode_png(frame)
-    packets = -(-len(data) // PAYLOAD)
     h, w = frame.shape[:2]
+    return png_messages(mav, encode_png(frame), w, h)
+
+
+def png_messages(mav: mavlink.MAVLink, data: bytes, w: int, h: int) -> list[mavlink.MAVLink_message]:
+    """One PNG as a handshake and its ENCAPSULATED_DATA packets."""
+    packets = -(-len(data) // PAYLOAD)
     msgs: list[mavlink.MAVLink_message] = [
         mav.data_transmission_handshake_encode(mavlink.MAVLINK_DATA_STREAM_IMG_PNG, len(data), w, h, packets, PAYLOAD, 0)
     ]

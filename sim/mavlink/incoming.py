@@ -44,7 +44,7 @@ class Incoming:
             # the image protocol's own request: a receiver's handshake asks for one frame (we
             # send PNG whatever type it names, and say so in our handshake)
             if self.camera is not None:
-                self._pending_frames += 1
+                self.queue_frame()
         elif kind == "TIMESYNC" and msg.tc1 == 0:  # a request: answer with our clock (simulated ns)
             self.send(self.mav.timesync_encode(max(int(self.t * 1e9), 1), msg.ts1))
         elif kind == "MANUAL_CONTROL":

@@ -6,6 +6,7 @@ station answers in its time, not the simulation's (which may run hundreds of tim
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,6 +21,8 @@ SUPPORTED = {
     mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
     mavlink.MAV_CMD_DO_CHANGE_SPEED,
 }
+#: items whose params 5-7 are a position the vehicle flies to
+POSITIONAL = frozenset({mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_WAYPOINT})
 FRAMES = {
     mavlink.MAV_FRAME_GLOBAL,
     mavlink.MAV_FRAME_GLOBAL_INT,
@@ -44,12 +47,22 @@ class MissionItem:
     autocontinue: int = 1
 
     @classmethod
-    def from_msg(cls, m) -> MissionItem:
-        if m.get_type() == "MISSION_ITEM":  # float lat/lon
-            x, y = int(round(m.x * 1e7)), int(round(m.y * 1e7))
-        else:
-            x, y = m.x, m.y
-        return cls(m.seq, m.frame, m.command, (m.param1, m.param2, m.param3, m.param4), x, y, m.z, m.autocontinue)
+    def from_msg(cls, m) -> MissionItem | int:
+        """The item, or the MAV_MISSION_RESULT that refuses it (NaN, inf or out-of-range
+        position: a hostile or broken sender gets an error ACK, never a traceback)."""
+        x, y, z = float(m.x), float(m.y), float(m.z)
+        if m.get_type() == "MISSION_ITEM":  # float lat/lon in degrees
+            x, y = x * 1e7, y * 1e7
+        if m.command not in POSITIONAL:  # params 5-7 are not a position (NaN: unused)
+            x, y = (v if math.isfinite(v) and abs(v) < 2**31 else 0.0 for v in (x, y))
+        elif not (math.isfinite(x) and abs(x) <= 90e7):
+            return mavlink.MAV_MISSION_INVALID_PARAM5_X
+        elif not (math.isfinite(y) and abs(y) <= 180e7):
+            return mavlink.MAV_MISSION_INVALID_PARAM6_Y
+        elif not (math.isfinite(z) and abs(z) <= 1e5):
+            return mavlink.MAV_MISSION_INVALID_PARAM7
+        return cls(m.seq, m.frame, m.command, (m.param1, m.param2, m.param3, m.param4), int(round(x)), int(round(y)),
+                   z, m.autocontinue)
 
 
 class MissionStore:
@@ -99,7 +112,7 @@ def _mission_type(msg: mavlink.MAVLink_message) -> int:
 
 class MissionProtocol:
     RETRY_S = 0.5  # wall-clock seconds before an item is requested again
-    MAX_RETRIES = 5
+    MAX_RETRIES = 10
 
     def __init__(self, host: MissionHost, store: MissionStore, clock: Callable[[], float] = time.monotonic) -> None:
         self.host, self.store, self.clock = host, store, clock
@@ -107,6 +120,7 @@ class MissionProtocol:
         self.partner: tuple[int, int] = (0, 0)  # who is uploading (system, component)
         self.last_request_t = 0.0
         self.retries = 0
+        self.completed: tuple[tuple[int, int], int] | None = None  # (partner, count) of the last upload
 
     HANDLES = frozenset({"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
                          "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
@@ -160,20 +174,31 @@ class MissionProtocol:
             self.host.mission_changed(cleared=True)
             return self._ack(msg, mavlink.MAV_MISSION_ACCEPTED)
         self.incoming = [None] * msg.count
+        self.completed = None
         self.retries = 0
         self._request(0)
         return None
 
     def _on_item(self, msg: mavlink.MAVLink_message) -> None:
         inc = self.incoming
+        src = (msg.get_srcSystem(), msg.get_srcComponent())
+        if inc is None and self.completed == (src, msg.seq + 1) and _mission_type(msg) == mavlink.MAV_MISSION_TYPE_MISSION:
+            # the last item again: our ACK was lost and the station resends it (MAVLink's mission
+            # protocol); the upload is done, say so again
+            return self._ack(msg, mavlink.MAV_MISSION_ACCEPTED)
         if inc is None or _mission_type(msg) != mavlink.MAV_MISSION_TYPE_MISSION:
             return
-        if (msg.get_srcSystem(), msg.get_srcComponent()) != self.partner:
+        if src != self.partner:
             return  # another station's item in the middle of this upload
-        if msg.seq >= len(inc):
+        if not 0 <= msg.seq < len(inc):
             self.incoming = None
             return self._ack(msg, mavlink.MAV_MISSION_INVALID_SEQUENCE)
         item = MissionItem.from_msg(msg)
+        if isinstance(item, int):
+            self.incoming = None
+            self.host.statustext(f"Mission item {msg.seq} refused: position not finite or out of range",
+                                 mavlink.MAV_SEVERITY_WARNING)
+            return self._ack(msg, item)
         result = validate(item, self.host.mission_item_allowed)
         if result != mavlink.MAV_MISSION_ACCEPTED:
             self.incoming = None
@@ -186,6 +211,7 @@ class MissionProtocol:
         self.store.items = [x for x in inc if x is not None]
         self.store.current = 0
         self.incoming = None
+        self.completed = (self.partner, len(self.store.items))
         self.host.mission_changed(cleared=False)
         self._ack(msg, mavlink.MAV_MISSION_ACCEPTED)
         self.host.send_mission_current()
@@ -207,7 +233,10 @@ class MissionProtocol:
             return
         self.retries += 1
         if self.retries > self.MAX_RETRIES:
+            # give up, and say so: the station must not wait for an ACK that never comes
             self.incoming = None
             self.host.statustext("Mission upload timed out", mavlink.MAV_SEVERITY_WARNING)
+            self.host.send(self.host.mav.mission_ack_encode(*self.partner, mavlink.MAV_MISSION_OPERATION_CANCELLED,
+                                                            mavlink.MAV_MISSION_TYPE_MISSION))
             return
         self._request(next(i for i, x in enumerate(inc) if x is None))

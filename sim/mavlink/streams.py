@@ -3,20 +3,40 @@ time too), requested messages, STATUSTEXT and camera frames. A mixin of MavlinkV
 
 from __future__ import annotations
 
+import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
-from .images import frame_messages
+from .images import encode_png, png_messages
 from .telemetry import BUILDERS, Snapshot
 
 M = mavlink
+STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT
+STATUSTEXT_KEEP = 200  # texts kept in the vehicle's counters (a history, not a leak)
+MAX_PENDING_FRAMES = 2  # frame requests queued beyond this are answered by the frames already queued
+#: a frame asked for again within this many wall-clock seconds, the vehicle not having moved
+#: more than FRAME_REUSE_M, is the same picture: resent as is so the receiver can fill its gaps
+FRAME_REUSE_S = 3.0
+FRAME_REUSE_M = 0.3
 #: telemetry streams run at most this many times their rate in wall-clock time
 MAX_STREAM_SPEEDUP = 50.0
 
 
 class Streams:
     def statustext(self, text: str, severity: int = M.MAV_SEVERITY_INFO) -> None:
-        self.counters.statustext.append(text)
-        self.send(self.mav.statustext_encode(severity, text[:50].encode()))
+        """STATUSTEXT as MAVLink 2 sends a long text: 50-byte chunks sharing a non-zero `id`,
+        numbered by `chunk_seq`, the last one NUL-terminated (an empty chunk when the text fills
+        its chunks exactly). A text of up to 50 bytes goes out whole with id 0, as PX4 does."""
+        keep(self.counters.statustext, text, STATUSTEXT_KEEP)
+        data = text.encode("utf-8", errors="replace")
+        if len(data) <= STATUSTEXT_CHUNK:
+            self.send(self.mav.statustext_encode(severity, data, 0, 0))
+            return
+        self._statustext_id = self._statustext_id % 0xFFFF + 1
+        chunks = [data[i:i + STATUSTEXT_CHUNK] for i in range(0, len(data), STATUSTEXT_CHUNK)]
+        if len(chunks[-1]) == STATUSTEXT_CHUNK:
+            chunks.append(b"")
+        for seq, chunk in enumerate(chunks[:256]):
+            self.send(self.mav.statustext_encode(severity, chunk, self._statustext_id, seq))
 
     def _stream(self) -> None:
         now = self.clock()
@@ -42,7 +62,7 @@ class Streams:
             self.send_mission_current()
             return True
         if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
-            self._pending_frames += 1  # a camera frame goes out on the next tick
+            self.queue_frame()  # a camera frame goes out on the next tick
             return True
         build = BUILDERS.get(msg_id)
         msg = build(self.mav, self.snapshot()) if build is not None else None
@@ -51,15 +71,32 @@ class Streams:
         self.send(msg)
         return True
 
+    def queue_frame(self) -> None:
+        self._pending_frames = min(self._pending_frames + 1, MAX_PENDING_FRAMES)
+
     def _send_frame(self) -> None:
         if self.camera is None:
             self._pending_frames = 0
             return
         s = self.model.state
-        frame = self.camera(s.position_ned, float(s.attitude_rpy[2]))
-        for m in frame_messages(self.mav, frame):
+        now, pos = self.clock(), s.position_ned.copy()
+        cached = self._frame_cache
+        if self._pending_frames and cached is not None and now - cached[0] <= FRAME_REUSE_S and np.linalg.norm(pos - cached[1]) <= FRAME_REUSE_M:
+            data, (h, w) = cached[2], cached[3]
+        else:
+            frame = self.camera(pos, float(s.attitude_rpy[2]))
+            data, (h, w) = encode_png(frame), frame.shape[:2]
+            self._frame_cache = (now, pos, data, (h, w))
+        for m in png_messages(self.mav, data, w, h):
             self.send(m)
         self.counters.frames_sent += 1
         self._pending_frames = max(0, self._pending_frames - 1)
         rate = self.params["UAVS_CAM_RATE"]
         self._next_frame_t = self.t + (1.0 / rate if rate > 0 else 0.0)
+
+
+def keep(history: list, item: object, n: int) -> None:
+    """Append to a bounded history: the latest n items."""
+    history.append(item)
+    if len(history) > n:
+        del history[: len(history) - n]

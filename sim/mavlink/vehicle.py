@@ -27,7 +27,7 @@ from .geofence import Geofence
 from .incoming import Incoming
 from .mission import MissionItem, MissionProtocol, MissionStore
 from .params import ParamStore
-from .streams import Streams
+from .streams import STATUSTEXT_KEEP, Streams, keep
 from .telemetry import DEFAULT_RATES
 from .udp import UdpLink
 
@@ -79,6 +79,8 @@ class MavlinkVehicle(Flying, Streams, Incoming):
         self._rtl_phase = 0
         self._wp_reached = -1
         self._pending_frames = 0
+        self._frame_cache: tuple | None = None  # (wall time, position, PNG bytes, (h, w)) of the last frame
+        self._statustext_id = 0
         self._next_frame_t = 0.0
 
     # -- helpers -------------------------------------------------------------------------
@@ -131,7 +133,7 @@ class MavlinkVehicle(Flying, Streams, Incoming):
                 try:
                     self.handle(msg)
                 except Exception as e:  # a well-formed message with absurd content: drop it, fly on
-                    self.counters.handler_errors.append(f"{msg.get_type()}: {type(e).__name__}: {e}")
+                    keep(self.counters.handler_errors, f"{msg.get_type()}: {type(e).__name__}: {e}", STATUSTEXT_KEEP)
                     log.exception("dropped %s after a handler error", msg.get_type())
 
     def tick(self, t: float) -> None:

@@ -34,3 +34,23 @@ def sitl_factory():
         s.stop()
         assert not s.errors, s.errors[:1]
         assert not s.vehicle.counters.handler_errors, s.vehicle.counters.handler_errors[:3]
+
+
+@pytest.fixture
+def lossy_sitl(sitl_factory):
+    """A SITL vehicle whose API link runs through a seeded FaultProxy: returns (sitl, proxy,
+    port the client listens on)."""
+    from sim.mavlink.faultproxy import FaultProxy
+
+    proxies: list[FaultProxy] = []
+
+    def make(up, down=None, seed: int = 0, **kw):
+        vehicle_port, client_port = free_udp_port(), free_udp_port()
+        proxy = FaultProxy(vehicle_port, client_port, up, down, seed=seed).start()
+        proxies.append(proxy)
+        sitl = sitl_factory(api_local_port=vehicle_port, api_remote_port=proxy.vehicle_side_port, **kw)
+        return sitl, proxy, client_port
+
+    yield make
+    for p in proxies:
+        p.stop()
