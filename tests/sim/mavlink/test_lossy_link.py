@@ -191,3 +191,22 @@ def test_non_finite_mission_items_get_an_error_ack(sitl_factory) -> None:
         assert not sitl.vehicle.counters.handler_errors
     finally:
         c.close()
+
+
+def test_long_statustext_goes_out_in_chunks(sitl_factory) -> None:
+    sitl = sitl_factory(physics="kinematic")
+    c = mavutil.mavlink_connection(f"udpin:127.0.0.1:{sitl.cfg.gcs_ports[1]}", source_system=255, source_component=190)
+    try:
+        assert c.recv_match(type="HEARTBEAT", blocking=True, timeout=10) is not None
+        text = "Geofence: " + "x" * 90 + " the end"  # 108 characters: three chunks
+        sitl.vehicle.statustext(text)
+        parts = {}
+        end = time.monotonic() + 5
+        while len(parts) < 3 and time.monotonic() < end:
+            m = c.recv_match(type="STATUSTEXT", blocking=True, timeout=1)
+            if m is not None and m.id != 0:
+                parts[m.chunk_seq] = (m.id, m.text)
+        assert sorted(parts) == [0, 1, 2] and len({i for i, _ in parts.values()}) == 1
+        assert "".join(parts[k][1] for k in range(3)) == text
+    finally:
+        c.close()
