@@ -50,7 +50,8 @@ def _nothing() -> Iterator[None]:
 
 def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path | None = None,
                grid: GridConfig | None = None, instance: int = 0, max_moves: int | None = None,
-               policy: str | None = None, on_abort: str = "rtl", progress: bool = False) -> dict[str, Any]:
+               policy: str | None = None, on_abort: str = "rtl", progress: bool = False,
+               physics: str = "pybullet") -> dict[str, Any]:
     """Start SITL in-process, fly a policy (default: the best shipped one) over MAVLink, write
     report + plot + tlog. Any failure or Ctrl-C brings the vehicle down first (missions.guarded);
     report['outcome'] says how the flight ended, report['error'] what stopped it, if anything."""
@@ -66,7 +67,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     pol = flight_policy(policy, checkpoint, grid, seed)  # before anything starts: can it fly this field?
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cfg = SitlConfig(instance=instance, speedup=speedup, physics="pybullet", camera=True, grid=grid,
+    cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=grid,
                      episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True)
     sitl = Sitl(cfg).start()
     track: list[np.ndarray] = []
@@ -101,7 +102,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     moves = max(len(log.cells) - 1, 0)
     optimal = int(optimal_lengths(sitl.episode)[0])
     save_log(log, out / "search_log.json", outcome=end.to_dict())
-    report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": "pybullet"},
+    report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": physics},
                    policy=pol.name, outcome=end.to_dict(),
                    moves=moves, optimal_moves=optimal, ratio_to_optimal=moves / max(optimal, 1),
                    targets=int(grid.n_targets), believed_found=len(log.believed_found),

@@ -107,7 +107,7 @@ def register(app: typer.Typer) -> None:
                         f"UDP port {port} ({what} of instance {n}) is taken: is another `uavsearch sitl "
                         f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
-            cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid,
+            cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None)

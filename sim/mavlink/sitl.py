@@ -45,7 +45,7 @@ class SitlConfig:
     grid: GridConfig = field(default_factory=GridConfig)
     episode_seed: int = 0
     seed: int = 0
-    camera: bool = True
+    camera: bool | None = None  # None: on for pybullet; on a kinematic body it renders a PyBullet scene of its own
     camera_px: int = 50
     signing_key: bytes | None = None
     tlog: Path | None = None
@@ -74,8 +74,8 @@ class SitlConfig:
             raise ValueError("speedup must be >= 0 (0: as fast as possible)")
         if self.physics not in ("pybullet", "kinematic"):
             raise ValueError(f"physics must be 'pybullet' or 'kinematic' (got {self.physics!r})")
-        if self.camera and self.physics != "pybullet":
-            self.camera = False  # the camera renders the PyBullet scene
+        if self.camera is None:
+            self.camera = self.physics == "pybullet"
 
     def to_dict(self) -> dict[str, Any]:
         """The config for provenance records; the signing key itself is never written out."""
@@ -137,9 +137,9 @@ class Sitl:
             from sim.vehicle.camera import DownCamera
             from sim.vehicle.field import Field
 
-            if self._own_model:
+            if self._own_model and hasattr(self.model, "cid"):
                 cid = self.model.cid
-            else:  # the fleet's world holds every vehicle; each camera sees its own field
+            else:  # a fleet's world holds every vehicle, a kinematic body has none: a scene to render
                 import pybullet
 
                 cid = self._scene = pybullet.connect(pybullet.DIRECT)

@@ -63,3 +63,8 @@ def test_an_exception_in_the_policy_brings_the_vehicle_home_and_down(tmp_path: P
     td = r["outcome"]["touchdown"]
     assert r["outcome"]["exit_code"] == 1 and td["commanded"] == ["RTL"] and td["disarmed"], td
     assert len(_cells(tmp_path)) == 4, "the log holds the moves flown before the failure"
+
+
+def test_a_kinematic_vehicle_has_a_camera_and_flies_the_search(tmp_path: Path) -> None:
+    r = fly_search(tmp_path, seed=3, speedup=12.0, instance=27, max_moves=6, policy="lawnmower", physics="kinematic")
+    assert r["error"] is None and r["frames"] == r["moves"] + 1 and r["frames_missing"] == 0, r
