@@ -10,7 +10,8 @@ from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from test_mavsdk_flight import _autopilot, _until
 
-from sim.mavlink import SitlConfig, SitlFleet
+from sim.gridworld import cell_to_ned
+from sim.mavlink import Sitl, SitlConfig, SitlFleet
 
 
 def _fleet(n: int, physics: str, speedup: float) -> SitlFleet:
@@ -79,3 +80,26 @@ def test_a_fleet_refuses_mixed_physics_and_shared_system_ids() -> None:
         SitlFleet([a, SitlConfig(instance=2, physics="pybullet")])
     with pytest.raises(ValueError, match="system ids"):
         SitlFleet([a, SitlConfig(instance=2, physics="kinematic", system_id=2)])
+
+
+def test_fleet_cameras_see_what_lone_vehicles_see() -> None:
+    """Each fleet vehicle renders its own field in a scene of its own: the same frames as a lone
+    vehicle with the same config (the shared physics world holds every airframe)."""
+    cfgs = [SitlConfig(instance=i, physics="pybullet", camera=True, episode_seed=i + 4, seed=i + 4,
+                       api_local_port=free_udp_port(), api_remote_port=free_udp_port(),
+                       gcs_local_port=free_udp_port(), gcs_remote_port=free_udp_port()) for i in range(2)]
+    fleet = SitlFleet(cfgs)
+    try:  # over each vehicle's first target
+        where = [np.r_[cell_to_ned(s.target_cells()[0]) - s.spawn_ne, -3.5] for s in fleet.sitls]
+        frames = [s._render(w, 0.0) for s, w in zip(fleet.sitls, where, strict=True)]
+    finally:
+        fleet.stop()
+    for cfg, frame, w in zip(cfgs, frames, where, strict=True):
+        grass = frame[0, 0]
+        assert (np.abs(frame.astype(int) - grass).sum(axis=-1) > 60).sum() > 20, "a target in view"
+        lone = Sitl(SitlConfig(**{**cfg.__dict__, "api_local_port": free_udp_port(),
+                                  "gcs_local_port": free_udp_port()}))
+        try:
+            np.testing.assert_array_equal(frame, lone._render(w, 0.0))
+        finally:
+            lone.stop()
