@@ -21,7 +21,7 @@ def sitl_factory():
     started: list[Sitl] = []
 
     def make(**kw) -> Sitl:
-        kw.setdefault("speedup", 12.0)
+        kw.setdefault("speedup", 6.0)
         kw.setdefault("instance", next(_instances) % 40)
         for name in ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port"):
             kw.setdefault(name, free_udp_port())
