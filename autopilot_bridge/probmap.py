@@ -15,6 +15,9 @@ from scipy.special import ndtr
 from sim.gridworld import DEFAULT_CELL_M, ned_to_cell
 from sim.gridworld.observations import AGENT_VALUE, MET_VALUE, VISITED_VALUE
 
+#: the spatiotemporal trail written at the current cell (GridConfig.trail_value's default)
+TRAIL_VALUE = 50.0
+
 
 def cell_probabilities(
     mean_ne: np.ndarray, cov_ne: np.ndarray, width: int, height: int, cell_m: float = DEFAULT_CELL_M
@@ -57,21 +60,38 @@ class ProbabilisticVisitationMap:
         self.visited = np.zeros((height, width))
         self.met = np.zeros((height, width))
         self.current = np.zeros((height, width))
+        # the spatiotemporal map's two decaying channels (trail, recoveries), in expectation
+        self.trail = np.zeros((height, width))
+        self.recovered = np.zeros((height, width))
 
     def visit(self, mean_ne: np.ndarray, cov_ne: np.ndarray) -> np.ndarray:
         """One decision step at the posterior (mean, cov). Returns P(in cell) now."""
         p = cell_probabilities(mean_ne, cov_ne, self.width, self.height, self.cell_m)
         self.visited = 1.0 - (1.0 - self.visited) * (1.0 - p)
         self.current = p
+        # as the grid world's spatiotemporal map: every value decays by 1 a step, the current
+        # cell is written TRAIL_VALUE (here each cell in proportion to P(in cell))
+        self.trail = np.maximum(self.trail - 1.0, 0.0)
+        self.trail = (1.0 - p) * self.trail + p * TRAIL_VALUE
+        self.recovered = np.maximum(self.recovered - 1.0, 0.0)
         return p
 
     def mark_target(self) -> None:
         """A target was detected under the UAV: spread the mark like the visit."""
         self.met = 1.0 - (1.0 - self.met) * (1.0 - self.current)
+        self.recovered = (1.0 - self.current) * self.recovered + self.current * TRAIL_VALUE
 
     def most_likely_cell(self) -> tuple[int, int]:
         y, x = np.unravel_index(int(np.argmax(self.current)), self.current.shape)
         return int(x), int(y)
+
+    def policy_map(self, variant: str) -> np.ndarray:
+        """The map M the policy was trained on (GridConfig.map_variant), in expectation."""
+        if variant == "spatiotemporal":
+            return np.stack([self.trail, self.recovered]).astype(np.float32)
+        if variant not in ("spatial", "memory"):
+            raise ValueError(f"unknown map variant {variant!r}")
+        return self.expected_map(memory=variant == "memory")
 
     def expected_map(self, memory: bool = False) -> np.ndarray:
         """(1, h, w) float32: the expectation of the crisp spatial (or +M) encoding."""

@@ -176,7 +176,7 @@ class PolicyService:
             if found >= g.n_targets or move == max_moves:
                 break
             obs = Observation(
-                views=view[None], maps=self.pmap.expected_map(memory=g.map_variant == "memory")[None],
+                views=view[None], maps=self.pmap.policy_map(g.map_variant)[None],
                 positions=cell[None].astype(np.int64), valid=valid_moves(cell, g.width, g.height, g.n_actions)[None],
                 t=np.array([move]), active=np.array([True]),
             )

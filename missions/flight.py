@@ -48,6 +48,15 @@ def _nothing() -> Iterator[None]:
     yield None
 
 
+def truly_met(track: np.ndarray, herd: np.ndarray) -> list[bool]:
+    """track (T, 2) true vehicle cells, herd (T, R, 2) true target cells at the same instants:
+    per target, was the vehicle ever within half a cell (each axis) of it at the same time?"""
+    if not len(track):
+        return [False] * herd.shape[1]
+    near = np.max(np.abs(track[:, None, :] - herd), axis=2) < 0.5  # (T, R)
+    return near.any(axis=0).tolist()
+
+
 def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path | None = None,
                grid: GridConfig | None = None, instance: int = 0, max_moves: int | None = None,
                policy: str | None = None, on_abort: str = "rtl", progress: bool = False,
@@ -71,10 +80,13 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                      episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True)
     sitl = Sitl(cfg).start()
     track: list[np.ndarray] = []
+    herd: list[np.ndarray] = []  # the targets' cells at the same instants as track
     stop = threading.Event()
 
     def watch() -> None:  # the scorer's view of the truth, never given to the service
         while not stop.is_set():
+            t = sitl.t
+            herd.append(sitl.target_cells(t).copy())
             track.append(sitl.vehicle_cell().copy())
             time.sleep(0.05)
 
@@ -96,9 +108,11 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
         link.close()
         sitl.stop()
     targets = sitl.episode.targets[0]
-    tr = np.array(track) if track else np.zeros((0, 2))
-    # truly recovered: the vehicle's true position came within half a cell of the target's centre
-    truly = [bool(len(tr) and np.min(np.max(np.abs(tr - t), axis=1)) < 0.5) for t in targets] if grid.motion == "static" else []
+    n = min(len(track), len(herd))
+    tr = np.array(track[:n]) if n else np.zeros((0, 2))
+    # truly recovered: the vehicle's true position came within half a cell of the target's
+    # centre at the same time (a moving target is met where it is then, not where it was)
+    truly = truly_met(tr, np.array(herd[:n]) if n else np.zeros((0, len(targets), 2)))
     moves = max(len(log.cells) - 1, 0)
     optimal = int(optimal_lengths(sitl.episode)[0])
     save_log(log, out / "search_log.json", outcome=end.to_dict())

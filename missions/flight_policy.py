@@ -14,6 +14,9 @@ from sim.gridworld import GridConfig
 FLIGHT_POLICY = "dualstream"
 
 
+_HINT = "the planners fly any field: --policy belief, frontier, ns or lawnmower"
+
+
 class PolicyUnfit(ValueError):
     """This policy cannot fly this field; the message says why and what to do instead."""
 
@@ -35,7 +38,7 @@ def flight_policy(name: str | None, checkpoint: Path | None, grid: GridConfig, s
         policy = make_policy(name, cfg=grid, **kw)
     except (CheckpointError, FileNotFoundError, ValueError, KeyError, RuntimeError) as e:
         raise PolicyUnfit(f"policy {name!r} cannot fly a {grid.width} x {grid.height} field with "
-                          f"{grid.n_targets} targets ({grid.motion}): {e}") from e
+                          f"{grid.n_targets} targets ({grid.motion}): {e}; {_HINT}") from e
     if policy.needs_truth:
         raise PolicyUnfit(f"policy {name!r} needs the field's truth (target positions); a companion computer "
                           "does not have it: pick one that searches")
@@ -44,7 +47,7 @@ def flight_policy(name: str | None, checkpoint: Path | None, grid: GridConfig, s
         a = int(policy.act(blank_observation(grid))[0])
     except Exception as e:  # noqa: BLE001 - whatever it is, it must show before take-off
         raise PolicyUnfit(f"policy {name!r} cannot decide on a {grid.width} x {grid.height} field "
-                          f"({type(e).__name__}: {e})") from e
+                          f"({type(e).__name__}: {e}); {_HINT}") from e
     if not 0 <= a < grid.n_actions:
         raise PolicyUnfit(f"policy {name!r} answered action {a}; this field has {grid.n_actions} actions")
     return policy

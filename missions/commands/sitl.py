@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import signal
 import time
 from enum import StrEnum
@@ -55,6 +56,9 @@ def register(app: typer.Typer) -> None:
         distribution: Dist = DIST,
         motion: Motion = MOTION,
         cell_m: float = typer.Option(2.0, "--cell-m", help="Cell size (m); the simulated camera is built for 2 m."),
+        target_step_s: float = typer.Option(
+            4.0, "--target-step-s", help="Simulated seconds per grid-world step of moving targets (the companion's "
+            "decision period: the herd moves at the grid world's pace per decision)."),
         field_out: Path = typer.Option(
             Path("out/sitl/field.json"), "--field-out",
             help="Write the field (origin, size, cell size, |R|, motion, address) here for `run --field`; "
@@ -82,6 +86,8 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"instances {instance}..{instance + count - 1} pass 39: PX4's ports 14540+N "
                                      "would meet 14580+M", param_hint="--count")
         key = _key(signing_key, signing_passphrase)
+        if not (math.isfinite(target_step_s) and target_step_s > 0):
+            raise typer.BadParameter(f"{target_step_s}: must be > 0 s", param_hint="--target-step-s")
         if cell_m != 2.0:
             raise typer.BadParameter(f"only 2 m cells are simulated so far (got {cell_m}): the camera, the field "
                                      "and the detector are built for 2 m", param_hint="--cell-m")
@@ -108,6 +114,7 @@ def register(app: typer.Typer) -> None:
                         f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
+                             target_step_s=target_step_s,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None)

@@ -47,6 +47,10 @@ class SitlConfig:
     seed: int = 0
     camera: bool | None = None  # None: on for pybullet; on a kinematic body it renders a PyBullet scene of its own
     camera_px: int = 50
+    #: simulated seconds per grid-world step of the targets' motion: the companion's decision
+    #: period (autopilot_bridge SearchSpec.decision_period_s), so cattle move at the grid world's
+    #: pace per decision (a target moves on every target_period-th step), from the first arming
+    target_step_s: float = 4.0
     signing_key: bytes | None = None
     tlog: Path | None = None
     gcs_link: bool = True
@@ -70,6 +74,8 @@ class SitlConfig:
                 raise ValueError(f"{name} must be a UDP port in 1..65535 (got {port})")
         if self.geofence.max_horizontal_m <= 0 or self.geofence.max_altitude_m <= 0:
             raise ValueError(f"geofence limits must be positive (got {self.geofence})")
+        if not self.target_step_s > 0:
+            raise ValueError(f"target_step_s must be > 0 (got {self.target_step_s})")
         if self.speedup < 0:
             raise ValueError("speedup must be >= 0 (0: as fast as possible)")
         if self.physics not in ("pybullet", "kinematic"):
@@ -169,15 +175,21 @@ class Sitl:
         self.errors: list[str] = []
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._motion_t0: float | None = None  # simulated time of the first arming
         self._update_targets()
 
     # -- the field's truth (never sent over MAVLink) --------------------------------------
     def target_cells(self, t: float | None = None) -> np.ndarray:
-        """Targets' cells now, moving smoothly between grid steps (one step per second)."""
+        """Targets' cells now, moving smoothly between grid steps: one step per target_step_s
+        of simulated time since the vehicle first armed (still before), holding the last
+        position after the episode's t_e steps."""
         t = self.t if t is None else t
         ep = self.episode
         if ep.paths is None:
             return ep.targets[0].astype(float)
+        if self._motion_t0 is None:
+            return ep.paths[0, 0].astype(float)
+        t = max(t - self._motion_t0, 0.0) / self.cfg.target_step_s
         k = int(np.floor(t))
         a = ep.paths[0, min(k, ep.paths.shape[1] - 1)]
         b = ep.paths[0, min(k + 1, ep.paths.shape[1] - 1)]
@@ -200,12 +212,18 @@ class Sitl:
     def step(self) -> None:
         self.model.step(TICK_S)
         self.t += TICK_S
+        self._note_arming()
         self.vehicle.tick(self.t)
+
+    def _note_arming(self) -> None:
+        if self._motion_t0 is None and self.model.state.armed:
+            self._motion_t0 = self.t
 
     def tick(self, t: float) -> None:
         """The MAVLink side's tick after someone else stepped the model to t (fleets); a
         failing tick is recorded and the vehicle stays on the link."""
         self.t = t
+        self._note_arming()
         try:
             self.vehicle.tick(t)
         except Exception:

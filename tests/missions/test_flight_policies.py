@@ -68,3 +68,21 @@ def test_an_exception_in_the_policy_brings_the_vehicle_home_and_down(tmp_path: P
 def test_a_kinematic_vehicle_has_a_camera_and_flies_the_search(tmp_path: Path) -> None:
     r = fly_search(tmp_path, seed=3, speedup=12.0, instance=27, max_moves=6, policy="lawnmower", physics="kinematic")
     assert r["error"] is None and r["frames"] == r["moves"] + 1 and r["frames_missing"] == 0, r
+
+
+def test_a_herd_flies_with_the_spatiotemporal_map_and_is_scored_where_it_is(tmp_path: Path) -> None:
+    grid = GridConfig(motion="herd", map_variant="spatiotemporal", n_targets=3)
+    r = fly_search(tmp_path, seed=6, speedup=12.0, grid=grid, instance=28, max_moves=8, policy="frontier",
+                   physics="kinematic")
+    assert r["error"] is None and r["frames"] == r["moves"] + 1, r
+    assert 0 <= r["truly_found"] <= 3 and r["believed_found"] <= r["truly_found"] + 1
+
+
+def test_truly_met_counts_a_moving_target_only_where_it_is_at_the_time() -> None:
+    import numpy as np
+
+    from missions.flight import truly_met
+
+    track = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    herd = np.array([[[1.0, 0.0], [5.0, 5.0]], [[2.0, 0.0], [5.0, 5.0]], [[1.0, 0.0], [2.2, 0.1]]])
+    assert truly_met(track, herd) == [False, True], "passing over a cell the target has left does not count"
