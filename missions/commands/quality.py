@@ -1,0 +1,45 @@
+"""`uavsearch quality`: every policy on every placement and motion, and the GPS table
+(issue 11): results/search_quality.md + .json + plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def quality(
+        episodes: int = typer.Option(2000, "--episodes", min=1, help="Test episodes per setting."),
+        gps_episodes: int = typer.Option(500, "--gps-episodes", min=1, help="Test episodes per GPS cell."),
+        seed: int = typer.Option(0, "--seed", help="Test seed (training never uses it)."),
+        policy: list[str] | None = typer.Option(None, "--policy", "-p", help="Rows to run (default: all)."),
+        setting: list[str] | None = typer.Option(None, "--setting", help="Settings to run (default: all)."),
+        gps: bool = typer.Option(True, "--gps/--no-gps", help="Also the GPS-noise table."),
+        out: Path = typer.Option(Path("results"), "--out", help="Directory for search_quality.*"),
+        workers: int | None = typer.Option(1, "--workers", help="Local processes."),
+        ray_address: str | None = typer.Option(None, "--ray-address", help="Fan cells out over a ray cluster."),
+    ) -> None:
+        """Search quality table: mean moves, ratio to oracle, p90, all found %, (g)."""
+        from policy.evaluation.quality import (
+            POLICIES,
+            SETTINGS,
+            QualityConfig,
+            run_quality,
+            write_quality,
+        )
+
+        if out.exists() and not out.is_dir():
+            raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+        try:
+            qc = QualityConfig(
+                episodes=episodes, seed=seed, gps_episodes=gps_episodes, gps=gps,
+                policies=tuple(policy) if policy else tuple(POLICIES),
+                settings=tuple(setting) if setting else tuple(label for label, _ in SETTINGS),
+            )
+        except ValueError as e:
+            raise typer.BadParameter(str(e)) from e
+        doc = run_quality(qc, workers=workers, ray_address=ray_address)
+        for p in write_quality(doc, out):
+            typer.echo(str(p))

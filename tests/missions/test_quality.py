@@ -1,0 +1,34 @@
+import json
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from missions.cli import app
+
+runner = CliRunner()
+
+
+def test_quality_writes_table_json_and_plots(tmp_path: Path) -> None:
+    out = tmp_path / "q"
+    r = runner.invoke(app, [
+        "quality", "--episodes", "24", "--gps-episodes", "8", "--policy", "oracle", "--policy", "belief",
+        "--policy", "cu", "--setting", "random", "--setting", "random walk", "--out", str(out),
+    ])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "search_quality.json").read_text())
+    assert doc["test_seed"] == 0 and doc["episodes"] == 24 and doc["git_revision"]
+    rnd = doc["table"]["random"]
+    assert rnd["oracle"]["all_found_pct"] == 100.0 and rnd["belief"]["all_found_pct"] == 100.0
+    assert rnd["belief"]["mean_moves"] > rnd["oracle"]["mean_moves"]  # the oracle is a lower bound
+    assert "not applicable" in doc["table"]["random walk"]["cu"]["note"]  # CU: static targets only
+    assert set(doc["gps"]["belief"]) >= {"kalman/hard/0.0", "kalman/probabilistic/1.0", "fix/hard/2.0"}
+    md = (out / "search_quality.md").read_text()
+    assert "| belief |" in md and "## GPS noise" in md and "random walk, cu: not applicable" in md
+    assert (out / "search_quality.png").stat().st_size > 0 and (out / "search_quality_gps.png").exists()
+
+
+def test_quality_rejects_unknown_rows_and_settings(tmp_path: Path) -> None:
+    r = runner.invoke(app, ["quality", "--policy", "bogus", "--out", str(tmp_path)])
+    assert r.exit_code != 0 and "bogus" in r.output
+    r = runner.invoke(app, ["quality", "--setting", "mars", "--out", str(tmp_path)])
+    assert r.exit_code != 0 and "mars" in r.output
