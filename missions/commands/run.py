@@ -126,7 +126,13 @@ def register(app: typer.Typer) -> None:
         log = end.log
         save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed))
         moves = max(len(log.cells) - 1, 0)
-        typer.echo(f"{moves} moves, {len(log.believed_found)}/{grid.n_targets} targets believed found; log in {out}")
+        if log.cells:
+            from missions.run_plot import plot_decisions
+
+            how = "" if end.cause is None else f" ({end.cause[:60]})"
+            plot_decisions(out / "search.png", grid, log.cells, log.believed_found, log.posterior_sd_m,
+                           f"{pol.name}: {moves} moves, {len(log.believed_found)}/{grid.n_targets} found{how}")
+        typer.echo(f"{moves} moves, {len(log.believed_found)}/{grid.n_targets} targets believed found; log and plot in {out}")
         if end.exit_code == EXIT_SHORT:
             typer.echo(f"warning: {end.cause}", err=True)
         elif end.exit_code != EXIT_OK:

@@ -32,6 +32,7 @@ def test_three_processes_fly_a_small_search(tmp_path: Path) -> None:
     log = json.loads((tmp_path / "run" / "search_log.json").read_text())
     assert log["outcome"]["touchdown"] is None and 1 <= len(log["cells"]) - 1 <= 10
     assert log["outcome"]["exit_code"] == run.returncode
+    assert (tmp_path / "run" / "search.png").read_bytes()[:4] == b"\x89PNG", "the companion's own plot"
     tlog = mavutil.mavlink_connection(str(tmp_path / "run" / "companion.tlog"))
     kinds = set()
     while (m := tlog.recv_match()) is not None:
