@@ -20,6 +20,8 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("results"), "--out", help="Directory for search_quality.*"),
         workers: int | None = typer.Option(1, "--workers", help="Local processes."),
         ray_address: str | None = typer.Option(None, "--ray-address", help="Fan cells out over a ray cluster."),
+        reuse: Path | None = typer.Option(
+            None, "--reuse", help="A previous search_quality.json: keep its measured cells, run only the others."),
     ) -> None:
         """Search quality table: mean moves, ratio to oracle, p90, all found %, (g)."""
         from policy.evaluation.quality import (
@@ -40,6 +42,14 @@ def register(app: typer.Typer) -> None:
             )
         except ValueError as e:
             raise typer.BadParameter(str(e)) from e
-        doc = run_quality(qc, workers=workers, ray_address=ray_address)
+        prev = None
+        if reuse is not None:
+            import json
+
+            try:
+                prev = json.loads(reuse.read_text())
+            except (OSError, json.JSONDecodeError) as e:
+                raise typer.BadParameter(f"cannot read {reuse}: {e}", param_hint="--reuse") from e
+        doc = run_quality(qc, workers=workers, ray_address=ray_address, reuse=prev)
         for p in write_quality(doc, out):
             typer.echo(str(p))

@@ -149,48 +149,71 @@ def gps_rows(policies: tuple[str, ...]) -> list[tuple[str, str, str | None]]:
     return rows
 
 
+def _reusable(prev: dict[str, Any] | None, qc: QualityConfig) -> tuple[dict, dict]:
+    """The measured cells of a previous document made with the same episodes and seed."""
+    if not prev or prev.get("test_seed") != qc.seed:
+        return {}, {}
+    table = prev.get("table", {}) if prev.get("episodes") == qc.episodes else {}
+    gps = prev.get("gps", {}) if prev.get("gps_episodes") == qc.gps_episodes else {}
+    rev = prev.get("git_revision", "unknown")
+    t = {(label, row): c | {"reused_from": c.get("reused_from", rev)}
+         for label, rows in table.items() for row, c in rows.items() if "mean_moves" in c}
+    g = {(label, key): c | {"reused_from": c.get("reused_from", rev)}
+         for label, cells in gps.items() for key, c in cells.items() if "mean_moves" in c}
+    return t, g
+
+
 def run_quality(qc: QualityConfig, workers: int | None = 1, ray_address: str | None = None,
-                progress: bool = True,
+                progress: bool = True, reuse: dict[str, Any] | None = None,
                 fan: Callable[..., list[Any]] | None = None) -> dict[str, Any]:
-    """Every (row, setting) cell and the GPS table, fanned out over local processes or ray."""
+    """Every (row, setting) cell and the GPS table, fanned out over local processes or ray.
+    reuse: a previous document; its measured cells (same episodes and seed) are kept, marked
+    with the revision they were measured at, and only the others (e.g. a policy that was not
+    registered or had no checkpoint then) are run."""
     from ..fanout import fan_out
 
     fan = fan or fan_out
-    tasks = [(row, label, qc.episodes, qc.seed) for label in qc.settings for row in qc.policies]
-    gps_tasks: list[tuple] = []
-    gps_labels: list[tuple[str, float, str, str]] = []
+    old_t, old_g = _reusable(reuse, qc)
+    table: dict[str, dict[str, Any]] = {label: {} for label in qc.settings}
+    gps: dict[str, dict[str, Any]] = {}
+    work: list[tuple[Callable[..., Any], tuple]] = []
+    slots: list[tuple[dict, str]] = []
+    for label in qc.settings:
+        for row in qc.policies:
+            table[label][row] = old_t.get((label, row))
+            if table[label][row] is None:
+                work.append((quality_task, (row, label, qc.episodes, qc.seed)))
+                slots.append((table[label], row))
     if qc.gps:
         for label, name, ck in gps_rows(qc.policies):
+            cells = gps.setdefault(label, {})
             for est in GPS_ESTIMATORS:
                 for prob in (False, True):
                     for s in GPS_SIGMAS:
                         if s == 0 and (prob or est != GPS_ESTIMATORS[0]):
                             continue  # noise-free is one number per row
-                        gps_tasks.append((name, s, prob, est, qc.gps_episodes, qc.seed, ck))
-                        gps_labels.append((label, s, "probabilistic" if prob else "hard", est))
+                        key = f"{est}/{'probabilistic' if prob else 'hard'}/{s}"
+                        cells[key] = old_g.get((label, key))
+                        if cells[key] is None:
+                            work.append((gps_task, (name, s, prob, est, qc.gps_episodes, qc.seed, ck)))
+                            slots.append((cells, key))
     t0 = time.perf_counter()
-    cells: list[Any] = []
-    bar = tqdm(total=len(tasks) + len(gps_tasks), desc="quality", unit="cell", disable=not progress)
+    bar = tqdm(total=len(work), desc="quality", unit="cell", disable=not progress)
     # one fan-out per chunk keeps the bar moving without giving up the parallelism
-    step = max(1, (workers or 1) * 2) if not ray_address else len(tasks) + len(gps_tasks)
-    work = [(quality_task, t) for t in tasks] + [(gps_task, t) for t in gps_tasks]
+    step = max(1, (workers or 1) * 2) if not ray_address else max(1, len(work))
     for i in range(0, len(work), step):
         chunk = work[i : i + step]
-        cells += fan(_run_one, [(fn, args) for fn, args in chunk], workers=workers, ray_address=ray_address)
+        done = fan(_run_one, chunk, workers=workers, ray_address=ray_address)
+        for (where, key), cell in zip(slots[i : i + step], done, strict=True):
+            where[key] = cell
         bar.update(len(chunk))
     bar.close()
-    table: dict[str, dict[str, Any]] = {label: {} for label in qc.settings}
-    for (row, label, *_), cell in zip(tasks, cells[: len(tasks)], strict=True):
-        table[label][row] = cell
-    gps: dict[str, dict[str, Any]] = {}
-    for (label, s, kind, est), cell in zip(gps_labels, cells[len(tasks):], strict=True):
-        gps.setdefault(label, {})[f"{est}/{kind}/{s}"] = cell
     cfgs = {label: cfg.to_dict() for label, cfg in SETTINGS if label in qc.settings}
     return stamp(
         {"quality": dataclasses.asdict(qc), "settings": cfgs}, qc.seed,
         test_seed=qc.seed, episodes=qc.episodes, gps_episodes=qc.gps_episodes,
         gps_cell_m=GpsNoise().cell_m, gps_process_m=GpsNoise().process_m,
-        table=table, gps=gps, seconds=round(time.perf_counter() - t0, 1),
+        table=table, gps=gps, seconds=round(time.perf_counter() - t0, 1), cells_run=len(work),
     )
 
 
@@ -205,6 +228,12 @@ def _ratio(cell: dict[str, Any], oracle: dict[str, Any] | None) -> str:
     return f"{cell['mean_moves'] / oracle['mean_moves']:.2f}"
 
 
+def _reuse_note(doc: dict[str, Any]) -> str:
+    revs = {c["reused_from"] for rows in doc["table"].values() for c in rows.values() if c and "reused_from" in c}
+    revs |= {c["reused_from"] for cells in doc["gps"].values() for c in cells.values() if c and "reused_from" in c}
+    return f" (the other cells reused from the run at {', '.join(sorted(revs))}: `--reuse`)" if revs else ""
+
+
 def markdown(doc: dict[str, Any]) -> str:
     qc = doc["config"]["quality"]
     lines = [
@@ -213,7 +242,8 @@ def markdown(doc: dict[str, Any]) -> str:
         f"`uavsearch quality --episodes {doc['episodes']}`: {doc['episodes']} test episodes per setting, "
         f"test seed {doc['test_seed']} (never used in training: searchnet trains on seeds >= 1,000,000, "
         "the belief planner was tuned on seeds 777 and 4242). Every policy meets the same episodes. "
-        f"git `{doc['git_revision']}`, {doc['created_utc']}, {doc['seconds']} s.",
+        f"git `{doc['git_revision']}`, {doc['created_utc']}, {doc['seconds']} s for "
+        f"{doc.get('cells_run', '?')} cells" + _reuse_note(doc) + ".",
         "",
         "Columns: mean moves; ratio of mean moves to the oracle's; 90th percentile of moves; "
         "episodes with every target found (t_e = 300); Table I's (g) recovery rate (mean ± sd). "

@@ -72,14 +72,16 @@ def _window(a: np.ndarray, radius: int) -> np.ndarray:
 
 def resolve_prior(prior: Any, cfg: GridConfig) -> tuple[np.ndarray | None, np.ndarray | None]:
     """(placement density, pair correlation) from: None (uniform, independent), an (h, w)
-    array (density only), 'model' (the config's own placement model, sampled) or a dataset path
-    (both estimated from its samples)."""
+    array (density only), Episodes (both counted from their targets at t = 0), 'model' (the
+    config's own placement model, sampled) or a dataset path (both estimated from its samples)."""
     from ..belief import estimate_pair, estimate_prior, model_pair, model_prior
 
     if prior is None:
         return None, None
     if isinstance(prior, np.ndarray):
         return prior, None
+    if isinstance(prior, Episodes):  # e.g. training episodes: both counted from their targets
+        return estimate_prior(prior, cfg), (estimate_pair(prior, cfg) if cfg.n_targets > 1 else None)
     if isinstance(prior, str) and prior == "model":
         return model_prior(cfg), model_pair(cfg)
     if isinstance(prior, str | Path):

@@ -32,3 +32,22 @@ def test_quality_rejects_unknown_rows_and_settings(tmp_path: Path) -> None:
     assert r.exit_code != 0 and "bogus" in r.output
     r = runner.invoke(app, ["quality", "--setting", "mars", "--out", str(tmp_path)])
     assert r.exit_code != 0 and "mars" in r.output
+
+
+def test_quality_reuse_runs_only_the_missing_cells(tmp_path: Path) -> None:
+    out = tmp_path / "q"
+    base = ["quality", "--episodes", "16", "--no-gps", "--setting", "random", "--out", str(out)]
+    r = runner.invoke(app, [*base, "--policy", "oracle", "--policy", "lawnmower"])
+    assert r.exit_code == 0, r.output
+    first = json.loads((out / "search_quality.json").read_text())
+    r = runner.invoke(app, [*base, "--policy", "oracle", "--policy", "lawnmower", "--policy", "frontier",
+                            "--reuse", str(out / "search_quality.json")])
+    assert r.exit_code == 0, r.output
+    second = json.loads((out / "search_quality.json").read_text())
+    assert second["cells_run"] == 1  # frontier only
+    for row in ("oracle", "lawnmower"):
+        cell = second["table"]["random"][row]
+        assert cell["reused_from"] == first["git_revision"]
+        assert cell["mean_moves"] == first["table"]["random"][row]["mean_moves"]
+    assert "reused_from" not in second["table"]["random"]["frontier"]
+    assert "reused from the run at" in (out / "search_quality.md").read_text()
