@@ -167,16 +167,22 @@ class PyBulletQuadrotor:
             else:  # land: hold horizontal position, descend
                 vel_sp = (0.0, 0.0, -0.7 if pos[2] > 1.0 else -0.4)
             thrust, (tx, ty, tz) = self.ctrl.thrust_and_torque(rot, lin, wb, vel_sp, self._yaw_enu, h)
-            kf, wmax = af.kf, af.max_omega
-            w_cmd = []
-            for a0, a1, a2, a3 in self._alloc_rows:
-                f = a0 * thrust + a1 * tx + a2 * ty + a3 * tz
-                w_cmd.append(min(math.sqrt(f / kf), wmax) if f > 0.0 else 0.0)
+            # mixer: rotor thrusts from the inverse allocation, speeds from thrust = kf w^2
+            (a00, a01, a02, a03), (a10, a11, a12, a13), (a20, a21, a22, a23), (a30, a31, a32, a33) = \
+                self._alloc_rows
+            ikf, wmax, sqrt = 1.0 / af.kf, af.max_omega, math.sqrt
+            f = a00 * thrust + a01 * tx + a02 * ty + a03 * tz
+            c0 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            f = a10 * thrust + a11 * tx + a12 * ty + a13 * tz
+            c1 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            f = a20 * thrust + a21 * tx + a22 * ty + a23 * tz
+            c2 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            f = a30 * thrust + a31 * tx + a32 * ty + a33 * tz
+            c3 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
         elif s.armed:
-            w_cmd = self._idle_cmd  # idle spin on the ground
+            c0 = c1 = c2 = c3 = self._idle_cmd[0]  # idle spin on the ground
         else:
-            w_cmd = self._stop_cmd
-        c0, c1, c2, c3 = w_cmd
+            c0 = c1 = c2 = c3 = 0.0
         k = self._lag
         w0, w1, w2, w3 = w0 + (c0 - w0) * k, w1 + (c1 - w1) * k, w2 + (c2 - w2) * k, w3 + (c3 - w3) * k
         self.omega = [w0, w1, w2, w3]
