@@ -15,17 +15,19 @@ from sim.gridworld.observations import AGENT_VALUE, VISITED_VALUE
 
 def cell_probabilities_xy(mean_xy: np.ndarray, sd_cells: np.ndarray | float, width: int,
                           height: int, fold: bool = True) -> np.ndarray:
-    """(n, 2) means (x, y) in fractional cells, (n,) or scalar axis sd in cells -> (n, h, w)
-    probability of the position being in each cell. fold: renormalise over the field."""
+    """(n, 2) means (x, y) in fractional cells, sd in cells: scalar, (n,) (both axes) or
+    (n, 2) (per axis) -> (n, h, w) probability of the position being in each cell.
+    fold: renormalise over the field."""
     mean_xy = np.atleast_2d(np.asarray(mean_xy, dtype=np.float64))
     n = len(mean_xy)
-    sd = np.broadcast_to(np.asarray(sd_cells, dtype=np.float64), (n,))
+    sd = np.asarray(sd_cells, dtype=np.float64)
+    sd = np.broadcast_to(sd[..., None] if sd.ndim < 2 else sd, (n, 2))
     if (sd <= 0).any() or not np.all(np.isfinite(sd)):
         raise ValueError("sd_cells must be finite and > 0")
     ex = np.arange(width + 1) - 0.5
     ey = np.arange(height + 1) - 0.5
-    px = np.diff(ndtr((ex[None] - mean_xy[:, 0, None]) / sd[:, None]), axis=1)  # (n, w)
-    py = np.diff(ndtr((ey[None] - mean_xy[:, 1, None]) / sd[:, None]), axis=1)  # (n, h)
+    px = np.diff(ndtr((ex[None] - mean_xy[:, 0, None]) / sd[:, 0, None]), axis=1)  # (n, w)
+    py = np.diff(ndtr((ey[None] - mean_xy[:, 1, None]) / sd[:, 1, None]), axis=1)  # (n, h)
     p = py[:, :, None] * px[:, None, :]
     if fold:
         tot = p.sum(axis=(1, 2), keepdims=True)
