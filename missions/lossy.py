@@ -65,3 +65,59 @@ def fly_lossy_search(faults: LinkFaults, seed: int = 0, max_moves: int | None = 
         "faults": asdict(faults), "up": asdict(proxy.up.counts), "down": asdict(proxy.down.counts),
         "link": asdict(link.stats), "sitl_errors": len(sitl.errors),
     }
+
+
+def upload_like_qgc(c, sysid: int, items, timeout: float = 0.4, tries: int = 15) -> int | None:
+    """A ground station's mission upload as QGroundControl does it (pymavlink connection `c`):
+    on silence, send the last message again (COUNT or the last item), up to `tries` times in a
+    row; returns the MISSION_ACK type, or None when the vehicle went quiet."""
+    from pymavlink import mavutil
+
+    m_ = mavutil.mavlink
+    last = c.mav.mission_count_encode(sysid, 1, len(items), m_.MAV_MISSION_TYPE_MISSION)
+    c.mav.send(last)
+    silent = 0
+    while silent < tries:
+        m = c.recv_match(type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], blocking=True, timeout=timeout)
+        if m is None:
+            silent += 1
+            c.mav.send(last)
+            continue
+        silent = 0
+        if m.get_type() == "MISSION_ACK":
+            return m.type
+        if 0 <= m.seq < len(items):
+            last = items[m.seq]
+            c.mav.send(last)
+    return None
+
+
+def lossy_mission_upload(faults: LinkFaults, seed: int, n_items: int = 8) -> dict[str, Any]:
+    """Upload an n-item mission through `faults` to a kinematic SITL vehicle; the ACK, whether
+    the vehicle holds every item, and the proxy's counts."""
+    from pymavlink import mavutil
+
+    from sim.mavlink import Sitl, SitlConfig
+
+    vport, cport = _free_port(), _free_port()
+    proxy = FaultProxy(vport, cport, faults, seed=seed).start()
+    sitl = Sitl(SitlConfig(instance=31, speedup=4.0, physics="kinematic", gcs_link=False, api_local_port=vport,
+                           api_remote_port=proxy.vehicle_side_port)).start()
+    c = mavutil.mavlink_connection(f"udpin:127.0.0.1:{cport}", source_system=255, source_component=190)
+    t0 = time.monotonic()
+    try:
+        home = c.recv_match(type="HOME_POSITION", blocking=True, timeout=20)
+        m_ = mavutil.mavlink
+        lat0, lon0, d = home.latitude * 1e-7, home.longitude * 1e-7, 1 / 111_200.0
+        items = [c.mav.mission_item_int_encode(
+            sitl.cfg.sysid, 1, i, m_.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            m_.MAV_CMD_NAV_TAKEOFF if i == 0 else m_.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0.5, 0, float("nan"),
+            int((lat0 + 2 * i * d) * 1e7), int(lon0 * 1e7), 3.5, m_.MAV_MISSION_TYPE_MISSION) for i in range(n_items)]
+        ack = upload_like_qgc(c, sitl.cfg.sysid, items)
+        held = [it.seq for it in sitl.vehicle.mission.items] == list(range(n_items))
+    finally:
+        c.close()
+        sitl.stop()
+        proxy.stop()
+    return {"seed": seed, "ack": ack, "ok": ack == 0 and held, "wall_s": time.monotonic() - t0,
+            "up": asdict(proxy.up.counts), "down": asdict(proxy.down.counts)}

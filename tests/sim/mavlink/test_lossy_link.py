@@ -16,6 +16,7 @@ from conftest import free_udp_port
 from pymavlink import mavutil
 
 from autopilot_bridge.images import FrameAssembler
+from missions.lossy import upload_like_qgc
 from sim.mavlink.faultproxy import FaultProxy, LinkFaults
 from sim.mavlink.images import frame_messages
 
@@ -99,27 +100,6 @@ def _item(sysid: int, seq: int, lat: float, lon: float, alt: float, mav):
     cmd = M.MAV_CMD_NAV_TAKEOFF if seq == 0 else M.MAV_CMD_NAV_WAYPOINT
     return mav.mission_item_int_encode(sysid, 1, seq, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, cmd, 0, 1, 0, 0.5, 0, math.nan,
                                        int(lat * 1e7), int(lon * 1e7), alt, M.MAV_MISSION_TYPE_MISSION)
-
-
-def upload_like_qgc(c, sysid: int, items, timeout: float = 0.4, tries: int = 15) -> int | None:
-    """A ground station's mission upload as QGroundControl does it: on silence, send the last
-    message again (COUNT or the last item), up to `tries` times; the MISSION_ACK type, or None."""
-    last = c.mav.mission_count_encode(sysid, 1, len(items), M.MAV_MISSION_TYPE_MISSION)
-    c.mav.send(last)
-    silent = 0
-    while silent < tries:
-        m = c.recv_match(type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], blocking=True, timeout=timeout)
-        if m is None:
-            silent += 1
-            c.mav.send(last)
-            continue
-        silent = 0
-        if m.get_type() == "MISSION_ACK":
-            return m.type
-        if 0 <= m.seq < len(items):
-            last = items[m.seq]
-            c.mav.send(last)
-    return None
 
 
 def _mission(c, home, sysid: int, n: int = 8):
