@@ -9,6 +9,7 @@ how many targets to find (the paper's known |R|). The truth stays in the simulat
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -27,6 +28,10 @@ from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import VehicleLink
 from .probmap import ProbabilisticVisitationMap
+
+log = logging.getLogger(__name__)
+DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
+FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,7 @@ class PolicyService:
         self.clock = clock
         self._setpoint: np.ndarray | None = None  # local NED (autopilot frame)
         self._stream_stop = threading.Event()
+        self._alive_until = float("inf")  # the decision loop's deadline (see _expect)
         self._last_gps_t = -1.0
         link.add_handler(self._on_message)
 
@@ -100,9 +106,22 @@ class PolicyService:
             epv = msg.v_acc * 1e-3 if msg.v_acc else msg.epv * 1e-2
             self.estimator.update(t, ned, eph, epv)
 
+    def _expect(self, seconds: float) -> None:
+        """The decision loop promises its next step within `seconds`; past that it is hung and
+        the setpoint stream stops, so the vehicle's offboard-loss failsafe takes over (a
+        stream that outlives its decision loop would hold the vehicle in OFFBOARD for ever)."""
+        self._alive_until = time.monotonic() + seconds
+
     def _stream_setpoints(self) -> None:
+        starved = False
         while not self._stream_stop.is_set():
-            if self._setpoint is not None:
+            if time.monotonic() > self._alive_until:
+                if not starved:
+                    log.warning("decision loop silent past its deadline: setpoints stopped, the vehicle's "
+                                "offboard-loss failsafe takes over")
+                starved = True
+            elif self._setpoint is not None:
+                starved = False
                 self.link.set_position_ned(*self._setpoint)
             time.sleep(0.05)
 
@@ -119,6 +138,7 @@ class PolicyService:
                       timeout, f"take-off to {self.spec.altitude_m} m")
         local = link.telemetry.local
         self._setpoint = np.array([local["n"], local["e"], -self.spec.altitude_m])
+        self._expect(DECISION_DEADLINE_S)
         threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()
         time.sleep(0.3)  # PX4 wants a setpoint stream before OFFBOARD
         link.set_mode("OFFBOARD")
@@ -127,6 +147,7 @@ class PolicyService:
         ne = cell_to_ned(cell)
         local = self.field_to_local(ne)
         self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
+        self._expect(timeout + DECISION_DEADLINE_S)
 
         if self.link.telemetry.mode != "OFFBOARD":  # the autopilot dropped out (e.g. lost setpoints)
             self.link.set_mode("OFFBOARD")
@@ -157,6 +178,7 @@ class PolicyService:
             self.pmap.visit(post.mean_ned[:2], post.horizontal_cov)
             self.log.posterior_sd_m.append(float(np.sqrt(post.horizontal_cov.trace() / 2)))
             self.log.cells.append((int(cell[0]), int(cell[1])))
+            self._expect(FRAME_DEADLINE_S)
             frame = self.frames.request()
             if frame is None:
                 self.log.frames_missing += 1
@@ -180,6 +202,7 @@ class PolicyService:
                 positions=cell[None].astype(np.int64), valid=valid_moves(cell, g.width, g.height, g.n_actions)[None],
                 t=np.array([move]), active=np.array([True]),
             )
+            self._expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])
             stay = False
             if not obs.valid[0, a]:

@@ -25,6 +25,8 @@ FORCE_MAGIC = 21196  # param 2 of ARM_DISARM: arm/disarm regardless of checks
 ATTITUDE_MODES = frozenset({"MANUAL", "ALTCTL", "ACRO", "STABILIZED"})
 REQUESTABLE = frozenset(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
                                           M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE}
+HEARTBEAT_MAX_PERIOD_S = 1.0  # a HEARTBEAT interval may not be set longer (MAVLink: 1 Hz nominal)
+MAX_STREAM_HZ = 100.0  # SET_MESSAGE_INTERVAL asking for more gets this
 RELATIVE_FRAMES = frozenset({M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
 
 
@@ -162,8 +164,21 @@ def set_message_interval(v: MavlinkVehicle, c: Command) -> Outcome:
         return M.MAV_RESULT_DENIED  # NaN is no message id, and no interval
     if msg_id not in DEFAULT_RATES and msg_id != M.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
         return M.MAV_RESULT_UNSUPPORTED
-    v.set_rate(msg_id, DEFAULT_RATES.get(msg_id, 0.0) if interval == 0 else (0.0 if interval < 0 else 1e6 / interval))
+    if msg_id == M.MAVLINK_MSG_ID_HEARTBEAT and (interval < 0 or interval > 1e6 * HEARTBEAT_MAX_PERIOD_S):
+        # every peer's link-loss detection hangs on it: no peer may switch it off
+        v.statustext("HEARTBEAT cannot be switched off", M.MAV_SEVERITY_WARNING)
+        return M.MAV_RESULT_DENIED
+    hz = DEFAULT_RATES.get(msg_id, 0.0) if interval == 0 else (0.0 if interval < 0 else 1e6 / interval)
+    v.set_rate(msg_id, min(hz, MAX_STREAM_HZ))
     return M.MAV_RESULT_ACCEPTED
+
+
+def inject_failure(v: MavlinkVehicle, c: Command) -> Outcome:
+    """MAV_CMD_INJECT_FAILURE: param1 FAILURE_UNIT, param2 FAILURE_TYPE (failsafe.py). The ACK
+    goes out before the failure takes effect (a failed link would swallow it)."""
+    if not (math.isfinite(c.p[0]) and math.isfinite(c.p[1])):
+        return M.MAV_RESULT_DENIED
+    return v.inject_failure(c.i(0), c.i(1))
 
 
 def request_message(v: MavlinkVehicle, c: Command) -> Outcome:
@@ -198,6 +213,7 @@ HANDLERS: dict[int, Callable[[MavlinkVehicle, Command], Outcome]] = {
     M.MAV_CMD_REQUEST_MESSAGE: request_message,
     M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: request_autopilot_capabilities,
     M.MAV_CMD_GET_HOME_POSITION: get_home_position,
+    M.MAV_CMD_INJECT_FAILURE: inject_failure,
 }
 
 

@@ -75,9 +75,6 @@ class Flying:
             self._fly_mission()
         elif self.mode == "AUTO.RTL":
             self._fly_rtl()
-        elif self.mode == "OFFBOARD" and not self.offboard_fresh():
-            self.statustext("Offboard setpoints lost: holding position", M.MAV_SEVERITY_WARNING)
-            self.set_mode("AUTO.LOITER")
         elif self.mode == "POSCTL":
             self._fly_sticks()
 

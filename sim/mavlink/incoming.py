@@ -47,6 +47,8 @@ class Incoming:
                 self.queue_frame()
         elif kind == "TIMESYNC" and msg.tc1 == 0:  # a request: answer with our clock (simulated ns)
             self.send(self.mav.timesync_encode(max(int(self.t * 1e9), 1), msg.ts1))
+        elif kind == "HEARTBEAT":
+            self.heard_heartbeat(msg)
         elif kind == "MANUAL_CONTROL":
             self._on_manual_control(msg)
         elif kind == "SET_MODE":  # deprecated: obeyed like DO_SET_MODE, without an ACK

@@ -4,6 +4,7 @@ A realistic handful of PX4's parameters with their ranges; all REAL32 on the wir
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink
@@ -16,6 +17,7 @@ class Param:
     hi: float
     doc: str
     readonly: bool = False  # reflects configuration the link must not change (e.g. signing)
+    values: tuple[int, ...] | None = None  # an enum parameter: only these
 
 
 def default_params() -> dict[str, Param]:
@@ -30,14 +32,33 @@ def default_params() -> dict[str, Param]:
         "GF_MAX_VER_DIST": Param(30.0, 1.0, 1000.0, "geofence: max altitude above home (m)"),
         "COM_OF_LOSS_T": Param(1.0, 0.1, 60.0, "offboard setpoint timeout (s)"),
         "COM_RC_LOSS_T": Param(0.5, 0.1, 35.0, "manual control (MANUAL_CONTROL) timeout in POSCTL (s)"),
+        "COM_FAIL_ACT_T": Param(5.0, 0.0, 25.0, "hold this long (s) before a failsafe's action (offboard loss)"),
+        "COM_OBL_RC_ACT": Param(0.0, 0.0, 5.0, "offboard loss action: 0 Position (no sticks: Return), 1 Altitude, "
+                                "2 Manual (no sticks: Return), 3 Return, 4 Land, 5 Hold", values=(0, 1, 2, 3, 4, 5)),
+        "COM_DL_LOSS_T": Param(10.0, 5.0, 300.0, "data link (heartbeat) loss timeout (s)"),
+        "NAV_DLL_ACT": Param(2.0, 0.0, 3.0, "data link loss action: 0 off, 1 Hold, 2 Return, 3 Land (PX4 default 0)",
+                             values=(0, 1, 2, 3)),
+        "BAT_LOW_THR": Param(0.15, 0.12, 0.5, "battery low threshold (warning)"),
+        "BAT_CRIT_THR": Param(0.07, 0.05, 0.25, "battery critical threshold (COM_LOW_BAT_ACT)"),
+        "BAT_EMERGEN_THR": Param(0.05, 0.03, 0.1, "battery emergency threshold (land)"),
+        "COM_LOW_BAT_ACT": Param(3.0, 0.0, 3.0, "battery failsafe: 0 warning, 2 Land, 3 Return at critical and land "
+                                 "at emergency (PX4 default 0)", values=(0, 2, 3)),
+        "SYS_FAILURE_EN": Param(0.0, 0.0, 1.0, "1: MAV_CMD_INJECT_FAILURE accepted", values=(0, 1)),
+        "UAVS_BAT_ENDUR_S": Param(1500.0, 10.0, 36000.0, "battery endurance in hover from full (s)"),
         "SYS_AUTOSTART": Param(4001.0, 0.0, 1e6, "airframe: generic quadrotor x"),
         "UAVS_CAM_RATE": Param(0.0, 0.0, 30.0, "camera frames streamed per second (0: on request)"),
         "UAVS_SIGNING": Param(0.0, 0.0, 1.0, "1: MAVLink2 signing required (read-only, set at start)", True),
     }
 
 
+#: fence and failsafe parameters: refused while armed (a link must not widen the fence or switch
+#: a failsafe off in flight)
+LOCKED_WHEN_ARMED = ("GF_", "COM_", "NAV_DLL_", "BAT_", "SYS_FAILURE_EN", "RTL_RETURN_ALT")
+
+
 class ParamStore:
-    def __init__(self, signing: bool = False) -> None:
+    def __init__(self, signing: bool = False, armed: Callable[[], bool] = lambda: False) -> None:
+        self.armed = armed
         self.params = default_params()
         self.params["UAVS_SIGNING"].value = float(signing)
         self.names = list(self.params)
@@ -53,6 +74,10 @@ class ParamStore:
             return False, f"{name} is read-only"
         if not math.isfinite(value) or not p.lo <= value <= p.hi:
             return False, f"{name}={value} outside [{p.lo}, {p.hi}]"
+        if p.values is not None and value not in p.values:
+            return False, f"{name}={value} is not one of {list(p.values)}"
+        if name.startswith(LOCKED_WHEN_ARMED) and self.armed() and value != p.value:
+            return False, f"{name} cannot change while armed"
         p.value = float(value)
         return True, ""
 

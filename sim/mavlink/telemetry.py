@@ -32,7 +32,7 @@ SENSORS = (
     | M.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL | M.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
     | M.MAV_SYS_STATUS_SENSOR_YAW_POSITION | M.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
     | M.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL | M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-    | M.MAV_SYS_STATUS_SENSOR_BATTERY | M.MAV_SYS_STATUS_AHRS
+    | M.MAV_SYS_STATUS_SENSOR_BATTERY | M.MAV_SYS_STATUS_AHRS | M.MAV_SYS_STATUS_GEOFENCE
 )
 #: what AUTOPILOT_VERSION claims: only what this vehicle does (no FTP, no fence/rally, no terrain)
 CAPABILITIES = (
@@ -65,6 +65,8 @@ class Snapshot:
     fix: GpsFix | None
     mode: str
     sysid: int
+    fence_breached: bool = False
+    battery_ok: bool = True
 
 
 def _heading_deg(s: VehicleState) -> float:
@@ -86,6 +88,12 @@ def sys_status(mav: mavlink.MAVLink, x: Snapshot) -> mavlink.MAVLink_message:
     s = x.state
     present = SENSORS | M.MAV_SYS_STATUS_PREARM_CHECK
     health = SENSORS | M.MAV_SYS_STATUS_PREARM_CHECK if x.fix is not None else SENSORS & ~M.MAV_SYS_STATUS_SENSOR_GPS
+    # the geofence is present, enabled and healthy unless breached, as PX4 reports it
+    # (a ground station reads an absent health bit as a breach)
+    if x.fence_breached:
+        health &= ~M.MAV_SYS_STATUS_GEOFENCE
+    if not x.battery_ok:
+        health &= ~M.MAV_SYS_STATUS_SENSOR_BATTERY
     return mav.sys_status_encode(present, present, health, 250, int(s.battery_voltage * 1000), -1,
                                  int(s.battery_remaining * 100), 0, 0, 0, 0, 0, 0)
 

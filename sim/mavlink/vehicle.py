@@ -22,6 +22,8 @@ from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsFix, GpsModel
 from sim.vehicle.model import FlightModel
 
+from .battery import Battery
+from .failsafe import Failsafes
 from .flying import Flying
 from .geofence import Geofence
 from .incoming import Incoming
@@ -45,7 +47,7 @@ class VehicleCounters:
     statustext: list[str] = field(default_factory=list)
 
 
-class MavlinkVehicle(Flying, Streams, Incoming):
+class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
     def __init__(
         self,
         model: FlightModel,
@@ -61,7 +63,7 @@ class MavlinkVehicle(Flying, Streams, Incoming):
         self.sysid = system_id
         self.clock = clock  # wall clock, for timers that wait on a client
         self._next_wall: dict[int, float] = {}
-        self.params = ParamStore(signing=signing)
+        self.params = ParamStore(signing=signing, armed=lambda: self.model.state.armed)
         self.mission = MissionStore()
         self.missions = MissionProtocol(self, self.mission, clock)
         self.mode = "AUTO.LOITER"
@@ -81,6 +83,8 @@ class MavlinkVehicle(Flying, Streams, Incoming):
         self._pending_frames = 0
         self._frame_cache: tuple | None = None  # (wall time, position, PNG bytes, (h, w)) of the last frame
         self._statustext_id = 0
+        self.battery = Battery()
+        self._init_failsafes()
         self._next_frame_t = 0.0
 
     # -- helpers -------------------------------------------------------------------------
@@ -92,6 +96,8 @@ class MavlinkVehicle(Flying, Streams, Incoming):
         return Geofence(self.params["GF_MAX_HOR_DIST"], self.params["GF_MAX_VER_DIST"])
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
+        if "mavlink_signal" in self.failures:
+            return  # injected link failure: nothing goes out
         for link in self.links:
             link.send(msg)
 
@@ -130,6 +136,8 @@ class MavlinkVehicle(Flying, Streams, Incoming):
         """Answer whatever has arrived, without advancing time (between physics ticks)."""
         for link in self.links:
             for msg in link.poll():
+                if "mavlink_signal" in self.failures and not _restores_signal(msg):
+                    continue  # injected link failure: nothing is heard but the command that ends it
                 try:
                     self.handle(msg)
                 except Exception as e:  # a well-formed message with absurd content: drop it, fly on
@@ -137,12 +145,17 @@ class MavlinkVehicle(Flying, Streams, Incoming):
                     log.exception("dropped %s after a handler error", msg.get_type())
 
     def tick(self, t: float) -> None:
-        self.t = t
+        dt, self.t = max(t - self.t, 0.0), t
         self.service()
         s = self.model.state
         fix = self.gps.sample(t, s.position_ned, s.velocity_ned)
-        if fix is not None:
+        if "gps" in self.failures:
+            self.fix = None
+        elif fix is not None:
             self.fix = fix
+        self.battery.step(dt, s.armed, s.armed and not s.landed, self.params["UAVS_BAT_ENDUR_S"])
+        s.battery_remaining, s.battery_voltage = self.battery.reading, self.battery.voltage
+        self._check_failsafes()
         self._fly()
         self._stream()
         self.missions.poll()
@@ -176,3 +189,8 @@ class MavlinkVehicle(Flying, Streams, Incoming):
         if self.mission.current >= len(self.mission.items):
             return M.MISSION_STATE_COMPLETE
         return M.MISSION_STATE_ACTIVE if self.mode == "AUTO.MISSION" else M.MISSION_STATE_NOT_STARTED
+
+
+def _restores_signal(msg: mavlink.MAVLink_message) -> bool:
+    return (msg.get_type() in ("COMMAND_LONG", "COMMAND_INT") and msg.command == M.MAV_CMD_INJECT_FAILURE
+            and int(msg.param1) == M.FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL)
