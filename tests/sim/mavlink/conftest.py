@@ -6,6 +6,7 @@ import pytest
 from sim.mavlink import Sitl, SitlConfig
 
 _instances = itertools.count(11)
+PORTS = ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port")
 
 
 def free_udp_port() -> int:
@@ -23,8 +24,13 @@ def sitl_factory():
     def make(**kw) -> Sitl:
         kw.setdefault("speedup", 6.0)
         kw.setdefault("instance", next(_instances) % 40)
-        for name in ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port"):
-            kw.setdefault(name, free_udp_port())
+        taken = {kw[n] for n in PORTS if n in kw}
+        for name in PORTS:
+            while name not in kw:  # four different ports: the OS may hand a just-freed one out twice
+                port = free_udp_port()
+                if port not in taken:
+                    kw[name] = port
+                    taken.add(port)
         s = Sitl(SitlConfig(**kw)).start()
         started.append(s)
         return s
