@@ -53,10 +53,11 @@ def _try(cmd: Callable[[], None], name: str, commanded: list[str], notes: list[s
 
 def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 120.0,
                hold_s: float = 60.0, echo: Callable[[str], None] = print,
-               stop_waiting: Callable[[], bool] = lambda: False) -> Touchdown:
+               stop_waiting: Callable[[], bool] = lambda: False, link_lost_s: float = 5.0) -> Touchdown:
     """Command `action`, then wait up to timeout_s (hold: hold_s for the operator, then land)
     for the vehicle to disarm. `stop_waiting()` true ends the wait early (a second Ctrl-C);
-    the vehicle keeps the command it was given."""
+    the vehicle keeps the command it was given. With no heartbeat for link_lost_s there is
+    nobody to wait for: the outcome says the vehicle's own failsafe is all that is left."""
     action = AbortAction(action)
     t0 = time.monotonic()
     commanded: list[str] = []
@@ -72,7 +73,8 @@ def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 
             AbortAction.land: lambda: _try(link.land, "LAND", commanded, notes),
             AbortAction.hold: lambda: _try(lambda: link.set_mode("AUTO.LOITER"), "HOLD", commanded, notes),
         }[action]()
-        if not ok and action is not AbortAction.land:
+        lost = time.monotonic() - tel.heartbeat_time > link_lost_s
+        if not ok and action is not AbortAction.land and not lost:  # refused, or unanswered on a live link
             _try(link.land, "LAND", commanded, notes)
         echo(f"abort: {' then '.join(commanded) or 'no command was accepted'}; waiting for disarm "
              f"(up to {timeout_s:.0f} s)" + (f" [{'; '.join(notes)}]" if notes else ""))
@@ -82,6 +84,8 @@ def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 
         waited = time.monotonic() - t0
         if stop_waiting():
             notes.append("operator stopped waiting")
+            break
+        if time.monotonic() - tel.heartbeat_time > link_lost_s:
             break
         if action is AbortAction.hold and not landing_forced and waited > hold_s:
             echo(f"abort: nobody landed the vehicle within {hold_s:.0f} s of HOLD: landing it")

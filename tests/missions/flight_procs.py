@@ -70,6 +70,7 @@ class Lines:
     """A subprocess's stdout, read on a thread so the test can wait for a line."""
 
     def __init__(self, proc: subprocess.Popen) -> None:
+        self.proc = proc
         self.lines: list[str] = []
         self._t = threading.Thread(target=self._read, args=(proc,), daemon=True)
         self._t.start()
@@ -113,7 +114,8 @@ def sitl_process(tmp: Path, instance: int, *args: str) -> Iterator[tuple[Path, G
         assert gcs.seen.armed == [False], "the ground station hears a disarmed vehicle"
         yield field_file, gcs, out
     finally:
-        proc.terminate()
+        if proc.poll() is None:
+            proc.terminate()
         try:
             proc.wait(timeout=15)
         except subprocess.TimeoutExpired:

@@ -63,3 +63,28 @@ def test_sigint_mid_search_lands_and_disarms(tmp_path: Path) -> None:
     assert log["outcome"]["exit_code"] == 130 and log["outcome"]["touchdown"]["disarmed"]
     assert log["outcome"]["touchdown"]["commanded"] == ["RTL"]
     assert len(log["cells"]) >= 5
+
+
+def test_losing_the_vehicle_mid_search_ends_run_with_the_cause(tmp_path: Path) -> None:
+    """The SITL dies mid-search: run cannot land what it cannot reach; it must not hang, and must
+    say that the vehicle's own failsafe is all that is left."""
+    with sitl_process(tmp_path, 12, "--speedup", "6") as (field_file, _, sitl_out):
+        run = uavsearch("run", "--field", str(field_file), "--policy", "lawnmower", "--move-timeout", "6",
+                        "--out", str(tmp_path / "run"))
+        lines: list[str] = []
+        end = time.monotonic() + 180
+        while time.monotonic() < end:
+            line = run.stdout.readline()
+            lines.append(line)
+            if "move 3/" in line or not line:
+                break
+        sitl_out.proc.kill()
+        t0 = time.monotonic()
+        rest, _ = run.communicate(timeout=120)
+        waited = time.monotonic() - t0
+    out = "".join(lines) + rest
+    assert run.returncode == 1 and "timed out" in out and "STILL ARMED" in out, out
+    # bounded: the move timeout, RTL's resends (~22 s), the heartbeat wait, and load
+    assert "its own failsafe" in out and waited < 6 + 22 + 5 + 30, f"run gave up in {waited:.0f} s"
+    log = json.loads((tmp_path / "run" / "search_log.json").read_text())
+    assert log["outcome"]["touchdown"]["disarmed"] is False and len(log["cells"]) >= 4
