@@ -63,6 +63,10 @@ def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 
     commanded: list[str] = []
     notes: list[str] = []
     tel = link.telemetry
+    if not tel.armed:  # a heartbeat newer than now settles it (an arm just ACKed may not show yet)
+        end = t0 + 2.5
+        while tel.heartbeat_time < t0 and time.monotonic() < end:
+            time.sleep(0.05)
     if not tel.armed:
         return Touchdown(action.value, commanded, True, 0.0, "never armed or already disarmed")
     if tel.landed_state == ON_GROUND:  # armed on the ground (e.g. failed during take-off)
