@@ -25,7 +25,7 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("out/demo"), help="Where the report goes."),
         fly: bool = typer.Option(True, "--fly/--no-fly", help="Also fly the search on the SITL vehicle."),
         speedup: float = typer.Option(10.0, min=0.1, help="Simulation speed-up for the flight."),
-        policy: str | None = typer.Option(None, "--policy", help="The policy that flies [default: the best shipped one]."),
+        policy: str | None = typer.Option(None, "--policy", help="The policy that flies (default: the best shipped one)."),
         on_abort: AbortAction = typer.Option(
             AbortAction.rtl, "--on-abort", help="What the vehicle does when the flight fails or is interrupted."),
     ) -> None:
