@@ -22,6 +22,7 @@ def register(app: typer.Typer) -> None:
         ray_address: str | None = typer.Option(None, "--ray-address", help="Fan cells out over a ray cluster."),
         reuse: Path | None = typer.Option(
             None, "--reuse", help="A previous search_quality.json: keep its measured cells, run only the others."),
+        refresh: list[str] | None = typer.Option(None, "--refresh", help="With --reuse: rerun these rows anyway."),
     ) -> None:
         """Search quality table: mean moves, ratio to oracle, p90, all found %, (g)."""
         from policy.evaluation.quality import (
@@ -50,6 +51,7 @@ def register(app: typer.Typer) -> None:
                 prev = json.loads(reuse.read_text())
             except (OSError, json.JSONDecodeError) as e:
                 raise typer.BadParameter(f"cannot read {reuse}: {e}", param_hint="--reuse") from e
-        doc = run_quality(qc, workers=workers, ray_address=ray_address, reuse=prev)
+        doc = run_quality(qc, workers=workers, ray_address=ray_address, reuse=prev,
+                          refresh=tuple(refresh or ()))
         for p in write_quality(doc, out):
             typer.echo(str(p))

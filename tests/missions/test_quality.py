@@ -1,6 +1,7 @@
 import json
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from missions.cli import app
@@ -8,6 +9,7 @@ from missions.cli import app
 runner = CliRunner()
 
 
+@pytest.mark.slow  # ~15 s alone: the hard-map GPS cells run to t_e
 def test_quality_writes_table_json_and_plots(tmp_path: Path) -> None:
     out = tmp_path / "q"
     r = runner.invoke(app, [
@@ -51,3 +53,8 @@ def test_quality_reuse_runs_only_the_missing_cells(tmp_path: Path) -> None:
         assert cell["mean_moves"] == first["table"]["random"][row]["mean_moves"]
     assert "reused_from" not in second["table"]["random"]["frontier"]
     assert "reused from the run at" in (out / "search_quality.md").read_text()
+    r = runner.invoke(app, [*base, "--policy", "oracle", "--policy", "lawnmower", "--policy", "frontier",
+                            "--reuse", str(out / "search_quality.json"), "--refresh", "lawnmower"])
+    assert r.exit_code == 0, r.output
+    third = json.loads((out / "search_quality.json").read_text())
+    assert third["cells_run"] == 1 and "reused_from" not in third["table"]["random"]["lawnmower"]
