@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import select
+import socket
 import threading
 import time
 import traceback
@@ -55,6 +56,7 @@ class SitlConfig:
     tlog: Path | None = None
     gcs_link: bool = True
     host: str = "127.0.0.1"
+    bind: str = "0.0.0.0"  # the local address the vehicle's ports are bound to (`sitl --bind`)
     geofence: Geofence = field(default_factory=Geofence)
     system_id: int | None = None  # None: instance + 1, as PX4 SITL
     # port overrides (None: PX4 SITL's numbering for this instance)
@@ -76,6 +78,10 @@ class SitlConfig:
             raise ValueError(f"geofence limits must be positive (got {self.geofence})")
         if not self.target_step_s > 0:
             raise ValueError(f"target_step_s must be > 0 (got {self.target_step_s})")
+        try:
+            socket.inet_aton(self.bind)
+        except OSError:
+            raise ValueError(f"bind must be an IPv4 address such as 0.0.0.0 or 127.0.0.1 (got {self.bind!r})") from None
         if self.speedup < 0:
             raise ValueError("speedup must be >= 0 (0: as fast as possible)")
         if self.physics not in ("pybullet", "kinematic"):
@@ -157,10 +163,14 @@ class Sitl:
         self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None
         sink = self.tlog.write if self.tlog else None
         links = [UdpLink(*cfg.api_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
-                         on_bytes=sink)]
+                         on_bytes=sink, bind=cfg.bind)]
         if cfg.gcs_link:
-            links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
-                                 on_bytes=sink, log_outgoing=False))
+            try:
+                links.append(UdpLink(*cfg.gcs_ports, host=cfg.host, system_id=cfg.sysid,
+                                     signing_key=cfg.signing_key, on_bytes=sink, log_outgoing=False, bind=cfg.bind))
+            except OSError:
+                links[0].close()
+                raise
         self.gps = GpsModel(self.home, cfg.seed, GpsConfig())
         self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera, system_id=cfg.sysid,
                                       signing=cfg.signing_key is not None)

@@ -24,6 +24,8 @@ class LinkStats:
 
 
 log = logging.getLogger(__name__)
+PEER_TTL_S = 10.0  # a peer silent this long gets no more telemetry
+MAX_PEERS = 8  # peers streamed to besides the default remote
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 
 
@@ -44,12 +46,23 @@ class UdpLink:
         signing_key: bytes | None = None,
         on_bytes: Callable[[bytes, bool], None] | None = None,
         log_outgoing: bool = True,
+        bind: str = "0.0.0.0",
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        # no SO_REUSEADDR: a second process on the same port must fail here, not silently
+        # share (and take) this vehicle's commands
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.sock.bind(("0.0.0.0", local_port))
+        try:
+            self.sock.bind((bind, local_port))
+        except OSError as e:
+            self.sock.close()
+            raise OSError(e.errno, f"cannot bind UDP {bind}:{local_port} ({e.strerror}): is another vehicle "
+                          "or program using this port?") from None
         self.sock.setblocking(False)
-        self.peers: list[tuple[str, int]] = [(host, remote_port)]
+        self.clock = clock
+        self.default_peer = (host, remote_port)
+        self.peers: list[tuple[str, int]] = [self.default_peer]
+        self._heard: dict[tuple[str, int], float] = {}  # peer -> when it last sent a good packet
         self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
         self.mav.robust_parsing = True
         self.stats = LinkStats()
@@ -68,6 +81,8 @@ class UdpLink:
             self.mav.signing.allow_unsigned_callback = lambda _m, msg_id: msg_id == mavlink.MAVLINK_MSG_ID_RADIO_STATUS
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
+        if self.mav.signing.sign_outgoing:  # the signing clock follows wall time, never frozen
+            self.mav.signing.timestamp = max(self.mav.signing.timestamp, signing_timestamp())
         buf = msg.pack(self.mav)
         for peer in self.peers:
             try:
@@ -107,13 +122,22 @@ class UdpLink:
             if self.stats.bad_data > bad_before or rejected:
                 self._log_drop(addr, data)
             if good:
-                if addr not in self.peers:
-                    self.peers.append(addr)
+                self._heard_from(addr)
                 self.stats.received += len(good)
                 if self.on_bytes:
                     self.on_bytes(data, False)
                 out.extend(good)
         return out
+
+    def _heard_from(self, addr: tuple[str, int]) -> None:
+        """Telemetry goes to every peer heard within PEER_TTL_S (at most MAX_PEERS), plus the
+        default remote: a thousand one-packet senders must not become a thousand streams."""
+        now = self.clock()
+        self._heard[addr] = now
+        if len(self._heard) > MAX_PEERS or now - min(self._heard.values()) > PEER_TTL_S:
+            fresh = sorted(((t, a) for a, t in self._heard.items() if now - t <= PEER_TTL_S), reverse=True)
+            self._heard = {a: t for t, a in fresh[:MAX_PEERS]}
+        self.peers = [self.default_peer] + [a for a in self._heard if a != self.default_peer]
 
     def _log_drop(self, addr: tuple[str, int], data: bytes) -> None:
         """Log dropped datagrams without flooding: the 1st, 10th, 100th, ... drop on this link."""

@@ -29,6 +29,7 @@ from .geofence import Geofence
 from .incoming import Incoming
 from .mission import MissionItem, MissionProtocol, MissionStore
 from .params import ParamStore
+from .signing import SigningGuard
 from .streams import STATUSTEXT_KEEP, Streams, keep
 from .telemetry import DEFAULT_RATES
 from .udp import UdpLink
@@ -84,6 +85,10 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         self._frame_cache: tuple | None = None  # (wall time, position, PNG bytes, (h, w)) of the last frame
         self._statustext_id = 0
         self.battery = Battery()
+        key = links[0].mav.signing.secret_key if links else None
+        self.signing_guard = SigningGuard(key) if key is not None else None
+        for link in links if self.signing_guard is not None else []:
+            self.signing_guard.install(link.mav)  # one replay table for every link
         self._init_failsafes()
         self._next_frame_t = 0.0
 
