@@ -47,6 +47,8 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed"),
         out: Path = typer.Option(Path("out/run"), "--out"),
         tlog: bool = typer.Option(True, "--tlog/--no-tlog", help="Log the link to OUT/companion.tlog."),
+        signing_key_file: Path | None = typer.Option(
+            None, "--signing-key-file", help="Sign the link (MAVLink 2): a chmod-600 file with 64 hex chars or a passphrase."),
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
         from autopilot_bridge.link import VehicleLink
@@ -97,6 +99,12 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"warning: flying a {grid.width} x {grid.height} field with {grid.n_targets} targets; "
                        f"{field} says {g0.width} x {g0.height} with {g0.n_targets}", err=True)
         address = connect or (fs.connect if fs is not None and fs.connect else "udpin:0.0.0.0:14540")
+        from autopilot_bridge.link import check_address
+
+        try:
+            check_address(address)
+        except ValueError as e:
+            raise typer.BadParameter(str(e), param_hint="--connect") from e
         port = udpin_port(address)
         if port is not None and udp_port_taken(port):
             raise typer.BadParameter(f"UDP port {port} is taken: is another `uavsearch run` connected to this "
@@ -111,8 +119,15 @@ def register(app: typer.Typer) -> None:
                   "origin": [origin.lat_deg, origin.lon_deg, origin.alt_m], "policy": pol.name,
                   "checkpoint": None if checkpoint is None else str(checkpoint), "altitude": altitude,
                   "max_moves": max_moves, "on_abort": on_abort.value}
+        from missions.keys import KeyFileError, read_signing_key
+
+        try:
+            key = read_signing_key(signing_key_file) if signing_key_file is not None else None
+        except KeyFileError as e:
+            raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
+        config["signing"] = key is not None
         link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
-                           tlog_meta=stamp(config, seed, kind="companion tlog"))
+                           tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key)
         typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
                    f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
         try:

@@ -69,7 +69,10 @@ def register(app: typer.Typer) -> None:
         gcs_port_per_instance: bool = typer.Option(
             False, "--gcs-port-per-instance",
             help="Send GCS telemetry to 14550+N instead of PX4's shared 14550 (one MAVProxy per vehicle)."),
-        signing_key: str | None = typer.Option(None, "--signing-key", help="64 hex chars: require MAVLink2 signing."),
+        signing_key_file: Path | None = typer.Option(
+            None, "--signing-key-file", help="Require MAVLink2 signing: a chmod-600 file with 64 hex chars or a passphrase."),
+        signing_key: str | None = typer.Option(
+            None, "--signing-key", help="64 hex chars (visible to other users in /proc: prefer --signing-key-file)."),
         signing_passphrase: str | None = typer.Option(
             None, "--signing-passphrase", help="Require signing with SHA-256(passphrase), as MAVProxy's `signing key`."),
         tlog: Path | None = typer.Option(None, "--tlog", help="Write a .tlog (one per instance: NAME-N.tlog)."),
@@ -86,6 +89,16 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"instances {instance}..{instance + count - 1} pass 39: PX4's ports 14540+N "
                                      "would meet 14580+M", param_hint="--count")
         key = _key(signing_key, signing_passphrase)
+        if signing_key_file is not None:
+            from missions.keys import KeyFileError, read_signing_key
+
+            if key is not None:
+                raise typer.BadParameter("give one of --signing-key-file, --signing-key, --signing-passphrase",
+                                         param_hint="--signing-key-file")
+            try:
+                key = read_signing_key(signing_key_file)
+            except KeyFileError as e:
+                raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
         if not (math.isfinite(target_step_s) and target_step_s > 0):
             raise typer.BadParameter(f"{target_step_s}: must be > 0 s", param_hint="--target-step-s")
         if cell_m != 2.0:
