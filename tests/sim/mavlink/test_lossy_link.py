@@ -33,6 +33,7 @@ def _through_proxy(faults: LinkFaults, seed: int, n: int = 2000) -> tuple[list[b
     got: list[bytes] = []
 
     def read() -> None:  # as they come: a socket buffer holds only a few hundred datagrams
+        client.settimeout(2.0)
         try:
             while True:
                 got.append(client.recv(100))
@@ -46,6 +47,9 @@ def _through_proxy(faults: LinkFaults, seed: int, n: int = 2000) -> tuple[list[b
             vehicle.sendto(i.to_bytes(4, "big") * 4, ("127.0.0.1", proxy.vehicle_side_port))
             while proxy.down.counts.forwarded < i - 20:  # stay within the socket buffers
                 time.sleep(0.001)
+        end = time.monotonic() + 10
+        while proxy.down.counts.forwarded < n and time.monotonic() < end:  # all in before the proxy stops
+            time.sleep(0.01)
         reader.join()
     client.close()
     vehicle.close()
