@@ -25,6 +25,9 @@ The model (why it is built this way):
   can be (at a border or not): p is first conditioned on agreeing with it.
 - A target shown in the agent's own cell has been found (the world recovers a target when
   the agent stands on its cell at the same time, and the observation comes after that move).
+  Whether that was a new find the spatiotemporal map M tells (its recoveries channel is
+  written at the agent's cell in the step of a find): then n_found is exact. With the other
+  maps the belief counts the expected new finds, target / (target + found) in that cell.
 - Found or not? The view shows targets whether found or not. A target shown in another
   cell is attributed to the unfound and found populations in proportion to their expected
   counts there: P(unfound) = target / (target + found), and 1 when both are 0 (a target
@@ -42,7 +45,8 @@ The model (why it is built this way):
   (t -> t + 1 with t % target_period == 0): random walk: to each in-bounds neighbour alike;
   herd (shared, unknown direction): the same, plus the deviation's stay (10 % / 3) and the
   stay of a target pushed against the border. Cells in view are then set from the view, and
-  the mass outside the view is rescaled so the populations keep their known sizes
+  the shown targets' attribution is capped by the population sizes (no more unfound ones
+  shown than remain), and the mass outside the view is rescaled so the populations keep their known sizes
   (R - n_found unfound, n_found found): a probability-hypothesis-density filter with known
   cardinality. An episode still running (obs.active) has at least one target left, which
   caps n_found at R - 1 while it runs. The support is exact (a target can only be where its density is > 0: the
@@ -268,10 +272,21 @@ class BeliefState:
                 det_f += shown * (1.0 - ratio_u)
         inview = np.minimum(inview, 1.0)
         keep = 1.0 - inview
+        events = self._find_events(obs)
+        if events is not None:
+            newly = events
         # an episode still running has at least one target left (the mission ends with the last)
         cap = np.where(np.asarray(obs.active, dtype=bool), cfg.n_targets - 1, cfg.n_targets)
         self.n_found = np.minimum(self.n_found + newly, cap)
         if cfg.moving:
+            # the shown targets cannot hold more unfound (found) ones than there are: move the
+            # excess of either attribution to the other
+            for src, dst, total in ((det_u, det_f, self.remaining), (det_f, det_u, self.n_found)):
+                have = src.sum(axis=(1, 2), dtype=np.float64)
+                over = np.where(have > total + 1e-6, 1.0 - total / np.maximum(have, 1e-9), 0.0)
+                moved = src * over[:, None, None].astype(np.float32)
+                src -= moved
+                dst += moved
             self._sighted = self._rescale(self._sighted * keep, det_u, self.remaining)
             self.found = self._rescale(self.found * keep, det_f, self.n_found)
         else:
@@ -284,6 +299,20 @@ class BeliefState:
         self.age *= keep
         self.t = t.copy()
         self.target = self._target()
+
+    def _find_events(self, obs) -> np.ndarray | None:
+        """(n,) targets found by the last move, where the map M says it: the spatiotemporal
+        map's recoveries channel is written (trail_value) at the agent's cell in the step of a
+        find. None where the map does not tell (spatial and memory maps) or the position is
+        uncertain; then the belief's own expectation is used."""
+        maps = np.asarray(obs.maps) if obs.maps is not None else None
+        cfg = self.cfg
+        if (cfg.map_variant != "spatiotemporal" or obs.position_prob is not None or maps is None
+                or maps.ndim != 4 or maps.shape[1] != 2):
+            return None
+        pos = np.asarray(obs.positions)
+        rec = maps[self.rows, 1, pos[:, 1], pos[:, 0]]
+        return (rec >= cfg.trail_value - 0.5).astype(np.float64)
 
     @staticmethod
     def _cap(a: np.ndarray, total: np.ndarray) -> np.ndarray:

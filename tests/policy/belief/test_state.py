@@ -90,14 +90,15 @@ def _kernel_loops(cfg: GridConfig, a: np.ndarray) -> np.ndarray:
     return out
 
 
-def _reference_moving(cfg: GridConfig, views, positions, ts, active):
-    """The moving-target filter for one episode, in plain loops."""
+def _reference_moving(cfg: GridConfig, views, positions, ts, active, recoveries):
+    """The moving-target filter for one episode, in plain loops. recoveries: the map's
+    recoveries value at the agent's cell per step (trail_value in the step of a find)."""
     h, w, r = cfg.height, cfg.width, cfg.n_targets
     u = np.full((h, w), r / (h * w))
     f = np.zeros((h, w))
     n_found = 0.0
     last = None
-    for view, pos, t, act in zip(views, positions, ts, active, strict=True):
+    for view, pos, t, act, rec in zip(views, positions, ts, active, recoveries, strict=True):
         if last is not None:
             for s in range(last, t):
                 if s % cfg.target_period == 0:
@@ -119,7 +120,13 @@ def _reference_moving(cfg: GridConfig, views, positions, ts, active):
                 newly += ru
             elif has:
                 det_u[y, x], det_f[y, x] = ru, 1 - ru
+        newly = 1.0 if rec >= cfg.trail_value - 0.5 else 0.0  # the map says when a find happened
         n_found = min(n_found + newly, r - 1 if act else r)
+        for src, dst, total in ((det_u, det_f, r - n_found), (det_f, det_u, n_found)):
+            if src.sum() > total + 1e-6:
+                moved = src * (1 - total / src.sum())
+                src -= moved
+                dst += moved
         for pop, total, det in ((u, r - n_found, det_u), (f, n_found, det_f)):
             rest = pop.copy()
             for (x, y) in shown:
@@ -145,10 +152,13 @@ def test_moving_belief_equals_loop_reference_and_holds_the_truth(motion):
         live = ~world.found & ~world.done[:, None]
         held = b.target[np.arange(n)[:, None], tg[..., 1], tg[..., 0]] > 0
         assert not (live & ~held).any(), "an unfound target stands where the belief says none can be"
-        np.testing.assert_allclose(b.target.sum(axis=(1, 2)), b.remaining, rtol=1e-4)
+        # the known cardinality, up to the 1e-3 leak kept outside a view that seems to hold all
+        np.testing.assert_allclose(b.target.sum(axis=(1, 2)), b.remaining, atol=2e-3 * cfg.n_targets)
     for i in range(n):
         u, f, nf = _reference_moving(cfg, [o.views[i] for o in record], [o.positions[i] for o in record],
-                                     [int(o.t[i]) for o in record], [bool(o.active[i]) for o in record])
+                                     [int(o.t[i]) for o in record], [bool(o.active[i]) for o in record],
+                                     [o.maps[i, 1, o.positions[i, 1], o.positions[i, 0]] for o in record])
+        assert nf == world.found[i].sum()  # the map's recoveries channel makes the count exact
         np.testing.assert_allclose(b.target[i], u, atol=2e-4)
         np.testing.assert_allclose(b.found[i], f, atol=2e-4)
         assert b.n_found[i] == pytest.approx(nf, abs=1e-5)
