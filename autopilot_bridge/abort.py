@@ -71,6 +71,9 @@ def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 
         return Touchdown(action.value, commanded, True, 0.0, "never armed or already disarmed")
     if tel.landed_state == ON_GROUND:  # armed on the ground (e.g. failed during take-off)
         _try(link.disarm, "disarm", commanded, notes)
+    elif tel.mode in ("AUTO.LAND", "AUTO.RTL"):  # already coming down (e.g. Ctrl-C while landing)
+        notes.append(f"already in {tel.mode}: kept it")
+        echo(f"abort: the vehicle is already in {tel.mode}; waiting for disarm (up to {timeout_s:.0f} s)")
     else:
         ok = {
             AbortAction.rtl: lambda: _try(link.return_to_launch, "RTL", commanded, notes),

@@ -38,6 +38,13 @@ def test_hold_leaves_the_operator_time_then_lands_and_disarms() -> None:
         td = bring_down(link, "hold", timeout_s=60, hold_s=2.0, echo=said.append)
         assert td.commanded == ["HOLD", "LAND"] and td.disarmed, td
         assert any("nobody landed" in s for s in said)
+        link.arm()
+        link.takeoff(link.telemetry.home["alt"] + 3.0)
+        link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -2.5, 30, "take-off")
+        link.land()
+        link.wait_for(lambda: link.telemetry.mode == "AUTO.LAND", 5, "LAND mode")
+        td = bring_down(link, "rtl", timeout_s=60, echo=said.append)
+        assert td.commanded == [] and td.disarmed and "already in AUTO.LAND" in td.note, "no climb-out to RTL"
     finally:
         link.close()
         sitl.stop()
