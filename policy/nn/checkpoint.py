@@ -1,10 +1,17 @@
 """Checkpoints: weights plus everything needed to trust and resume them (model config, grid
 config, training config, seed, git revision, metrics, optimiser and RNG state), written
-atomically; a file that is corrupt, foreign or for another architecture is a clear error."""
+atomically; a file that is corrupt, foreign or for another architecture is a clear error.
+
+Loading never runs code from the file (torch.load(weights_only=True), with numpy's array and
+dtype types allowed for replay buffers and RNG states), and the weights carry a SHA-256 that is
+checked on load: torch's zip reader does not check its CRCs, so flipped bytes in a tensor used
+to load silently and change results."""
 
 from __future__ import annotations
 
+import hashlib
 import io
+import logging
 import pickle
 import zipfile
 from pathlib import Path
@@ -19,6 +26,7 @@ from .config import ModelConfig
 from .models import build_model
 
 FORMAT = "uavsearch-checkpoint/1"
+log = logging.getLogger(__name__)
 
 
 class CheckpointError(ValueError):
@@ -34,19 +42,45 @@ def save_checkpoint(path: str | Path, model: nn.Module, model_cfg: ModelConfig, 
         "git_revision": git_revision(),
         **state,
     }
+    doc["weights_sha256"] = weights_digest(doc["state_dict"])
     buf = io.BytesIO()
     torch.save(doc, buf)
     atomic_write_bytes(path, buf.getvalue())
     return Path(path)
 
 
+def weights_digest(state_dict: dict[str, Any]) -> str:
+    """SHA-256 over the tensors' names, dtypes, shapes and bytes, in name order."""
+    h = hashlib.sha256()
+    for name in sorted(state_dict):
+        t = state_dict[name]
+        if not isinstance(t, torch.Tensor):
+            continue
+        t = t.detach().cpu().contiguous()
+        h.update(f"{name}|{t.dtype}|{tuple(t.shape)}|".encode())
+        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
+    return h.hexdigest()
+
+
+def _safe_globals() -> list:
+    """numpy types a training snapshot may hold (replay buffers, RNG state): data, not code."""
+    import numpy as np
+
+    core = getattr(np, "_core", None) or np.core
+    dtypes = [type(np.dtype(t)) for t in (np.float16, np.float32, np.float64, np.int8, np.int16, np.int32, np.int64,
+                                          np.uint8, np.uint16, np.uint32, np.uint64, np.bool_)]
+    return [core.multiarray._reconstruct, core.multiarray.scalar, np.ndarray, np.dtype, *dtypes]
+
+
 def read_torch_document(path: str | Path, fmt: str, required: tuple[str, ...]) -> dict[str, Any]:
-    """Load a torch-saved dict and check its format tag and keys; any failure is a CheckpointError."""
+    """Load a torch-saved dict (weights only: no code in the file runs) and check its format tag,
+    keys and weights checksum; any failure is a CheckpointError naming the file."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
     try:
-        doc = torch.load(path, map_location="cpu", weights_only=False)
+        with torch.serialization.safe_globals(_safe_globals()):
+            doc = torch.load(path, map_location="cpu", weights_only=True)
     except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError) as e:
         raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") from e
     if not isinstance(doc, dict) or doc.get("format") != fmt:
@@ -55,6 +89,11 @@ def read_torch_document(path: str | Path, fmt: str, required: tuple[str, ...]) -
     for key in required:
         if key not in doc:
             raise CheckpointError(f"{path}: missing {key!r}")
+    want = doc.get("weights_sha256")
+    if want is not None and isinstance(doc.get("state_dict"), dict) and weights_digest(doc["state_dict"]) != want:
+        raise CheckpointError(f"{path}: the weights do not match their SHA-256 (the file is corrupt)")
+    if want is None and "state_dict" in doc:
+        log.info("%s: written before checksums; weights not verified", path)
     return doc
 
 
