@@ -19,7 +19,9 @@ placement prior (given, or estimated from data), through policy.belief.BeliefSta
   travel offset making a far rich cell compete with a near poor one. Among the shortest-path
   first moves towards g it takes the one whose next view reveals more.
 - Moving targets: the same rule on the diffused unfound density, with the ring weighted the
-  same way (a sighted target is a blob that grows while nobody looks).
+  same way (a sighted target is a blob that grows while nobody looks). Given a pair
+  correlation (the herd starts as a lattice and deviates 10 % of its moves), where to look is
+  weighted towards the found targets by that correlation blurred over 5 x 5 cells.
 
 Every quantity is a whole-batch array; the only Python loops are over the 9 view slots, the
 4 moves and (once per episode) the tour's Held-Karp groups.
@@ -54,9 +56,13 @@ class PlannerParams:
     #: unseen cells that few positions can see (borders: 6 of 9, corners: 4) are worth
     #: (9 / viewers) ** edge: left for later they cost a pass of their own
     edge: float = 1.0
+    #: moving targets with a pair correlation: weight of "the others are near the found ones"
+    #: (the blurred pair correlation, as a log-factor on where to look); 0.5 took herd from
+    #: 39.7 to 37.5 moves on the tuning seeds
+    herd: float = 0.5
 
     def __post_init__(self) -> None:
-        for k in ("pickup", "outer", "travel_offset", "edge"):
+        for k in ("pickup", "outer", "travel_offset", "edge", "herd"):
             if not getattr(self, k) >= 0:
                 raise ValueError(f"PlannerParams.{k} must be >= 0 (got {getattr(self, k)})")
 
@@ -110,6 +116,17 @@ class BeliefPlanner(Policy):
         self.cfg, self.n = cfg, n
         density, pair = self._prior_cache[key]
         self.belief = BeliefState(cfg, n, density, pair)
+        self._herd = None
+        if cfg.moving and pair is not None:
+            # moving targets keep their placement's structure only loosely (a herd deviates
+            # 10 % of its moves): the pair correlation blurred by two cells says "the others are
+            # near the ones seen", and weights where the planner looks, not the belief itself
+            from scipy.ndimage import uniform_filter
+
+            g = uniform_filter(np.log(np.clip(pair, 1e-3, None)), size=5, mode="nearest")
+            h, w = cfg.height, cfg.width
+            cy, cx = np.divmod(np.arange(h * w), w)
+            self._herd = g[cy[None, :] - cy[:, None] + h - 1, cx[None, :] - cx[:, None] + w - 1].astype(np.float32)
         self.rng = np.random.default_rng([seed, 0xBE11EF])
         self.rows = np.arange(n)
         h, w = cfg.height, cfg.width
@@ -127,6 +144,12 @@ class BeliefPlanner(Policy):
         b, p = self.belief, self.params
         if self.cfg.moving:
             mass = b.target * 1.0
+            if self._herd is not None:
+                logf = (b.found.reshape(self.n, -1) @ self._herd).reshape(mass.shape)
+                wgt = np.exp(self.params.herd * (logf - logf.max(axis=(1, 2), keepdims=True)))
+                tot = mass.sum(axis=(1, 2), keepdims=True)
+                mass = mass * wgt
+                mass *= tot / np.maximum(mass.sum(axis=(1, 2), keepdims=True), 1e-9)
         else:
             mass = b.target - b.sighted  # the prior-spread pool over unseen cells
         mass = mass * self.cell_weight
