@@ -72,6 +72,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Train on optimal decisions (the best fold's model goes to OUT/model.pt), or the DRQN by
         reward in the grid world set by the grid options (OUT/drqn.pt)."""
+        if out.exists() and not out.is_dir():
+            raise typer.BadParameter(f"{out} is a file; --out names a run directory", param_hint="--out")
         if model is Model.drqn:
             _train_drqn(out, episodes, seed, resume, threads, grid)
             return

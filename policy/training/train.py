@@ -10,6 +10,7 @@ parallel processes (or on a ray cluster) and one fold can train over several GPU
 
 from __future__ import annotations
 
+import math
 import shutil
 import time
 from dataclasses import asdict, dataclass
@@ -56,8 +57,9 @@ class TrainConfig:
     ddp: int = 0
 
     def __post_init__(self) -> None:
-        if self.epochs < 1 or self.batch < 1 or self.lr <= 0:
-            raise ValueError("epochs, batch and lr must be positive")
+        if self.epochs < 1 or self.batch < 1 or not (math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"epochs, batch and lr must be positive and finite (got epochs {self.epochs}, "
+                             f"batch {self.batch}, lr {self.lr})")
         if self.folds < 2:
             raise ValueError(f"k-fold needs folds >= 2 (got {self.folds})")
         if self.run_folds is not None and not 1 <= self.run_folds <= self.folds:
@@ -215,10 +217,14 @@ def fit_fold(data: Data, out: Path, tc: TrainConfig, fold: int, device: torch.de
                 continue
             j = order[s][rank::world]  # this rank's share of the global batch
             loss, logits = net(data.views[j].to(device), data.maps[j].to(device), data.actions[j].to(device))
+            value = float(loss.detach())
+            if not math.isfinite(value):  # diverged: stop before a NaN model is stepped into and saved
+                raise ValueError(f"training diverged: loss {value} at fold {fold}, epoch {epoch} "
+                                 f"(lr {tc.lr}); nothing was saved for this epoch, try a smaller --lr")
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
-            loss_sum += float(loss.detach()) * len(j)
+            loss_sum += value * len(j)
             correct += int((logits.detach().argmax(1).cpu() == data.actions[j]).sum())
             seen += len(j)
             bar.update(len(j) * world)
