@@ -7,6 +7,8 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import os
+import shutil
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,20 +27,50 @@ class DatasetError(ValueError):
     """A dataset that cannot be used as it is; the message says which file and why."""
 
 
+def _clean_orphans(out: Path) -> None:
+    """What a killed writer left: temporary files of atomic writes inside `out`, and staging or
+    retired copies beside it (NAME.new-PID, NAME.old-PID) whose process is gone."""
+    if out.is_dir():
+        for tmp in out.glob(".*.tmp"):
+            tmp.unlink(missing_ok=True)
+    for side in list(out.parent.glob(f"{out.name}.new-*")) + list(out.parent.glob(f"{out.name}.old-*")):
+        pid = side.name.rsplit("-", 1)[-1]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(side, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 class ShardWriter:
-    """Buffers samples and writes a shard every `shard_size` samples."""
+    """Buffers samples and writes a shard every `shard_size` samples.
+
+    Replacing a dataset (overwrite=True) writes the new one beside it (NAME.new-PID) and swaps
+    the directories only when it is complete: a writer killed half-way leaves the old dataset
+    whole (it used to delete its meta first and overwrite its shards in place)."""
 
     def __init__(self, out: Path, shard_size: int = 100_000, overwrite: bool = False) -> None:
         if shard_size < 1:
             raise ValueError("shard_size must be >= 1")
-        self.out = Path(out)
-        if self.out.exists() and not self.out.is_dir():
-            raise FileExistsError(f"{self.out} is a file, not a dataset directory")
-        if (self.out / META).exists():
+        self.final = Path(out)
+        if self.final.exists() and not self.final.is_dir():
+            raise FileExistsError(f"{self.final} is a file, not a dataset directory")
+        _clean_orphans(self.final)
+        self.out = self.final
+        if (self.final / META).exists():
             if not overwrite:
-                raise FileExistsError(f"{self.out} already holds a dataset (overwrite=True replaces it)")
-            # from here on the directory is not a valid dataset until the new meta lands
-            (self.out / META).unlink()
+                raise FileExistsError(f"{self.final} already holds a dataset (overwrite=True replaces it)")
+            self.out = self.final.with_name(f"{self.final.name}.new-{os.getpid()}")
+            shutil.rmtree(self.out, ignore_errors=True)
         self.out.mkdir(parents=True, exist_ok=True)
         self.shard_size = shard_size
         self._buf: dict[str, list[np.ndarray]] = {k: [] for k in KEYS}
@@ -80,10 +112,16 @@ class ShardWriter:
         }
         atomic_write_json(self.out / META, record)
         keep = {s["file"] for s in self.shards}
-        for stale in self.out.glob("shard-*.npz"):  # left by a replaced, larger dataset
+        for stale in self.out.glob("shard-*.npz"):  # left by an interrupted, larger run
             if stale.name not in keep:
                 stale.unlink()
-        return self.out
+        if self.out != self.final:  # the swap: old aside, new in place, old gone
+            old = self.final.with_name(f"{self.final.name}.old-{os.getpid()}")
+            os.replace(self.final, old)
+            os.replace(self.out, self.final)
+            shutil.rmtree(old, ignore_errors=True)
+            self.out = self.final
+        return self.final
 
 
 class Dataset:
@@ -118,6 +156,10 @@ class Dataset:
             arrays["maps"].shape[1:]
         ) != self.meta["map_shape"]:
             raise DatasetError(f"{f}: sample shapes differ from {META}")
+        a = arrays["actions"]
+        if len(a) and (a.min() < 0 or a.max() >= self.n_actions):
+            bad = int(a[(a < 0) | (a >= self.n_actions)][0])
+            raise DatasetError(f"{f}: label {bad} outside the {self.n_actions} actions 0..{self.n_actions - 1}")
         return arrays
 
     def load(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
