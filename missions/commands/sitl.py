@@ -76,6 +76,8 @@ def register(app: typer.Typer) -> None:
         signing_passphrase: str | None = typer.Option(
             None, "--signing-passphrase", help="Require signing with SHA-256(passphrase), as MAVProxy's `signing key`."),
         tlog: Path | None = typer.Option(None, "--tlog", help="Write a .tlog (one per instance: NAME-N.tlog)."),
+        bind: str = typer.Option("0.0.0.0", "--bind", help="Local address the vehicle's ports listen on "
+                                 "(127.0.0.1: this machine only)."),
         duration: float | None = typer.Option(None, "--duration", help="Stop after this many simulated seconds."),
     ) -> None:
         """Start SITL vehicles (PX4 flavour) and print how to connect to them."""
@@ -119,7 +121,10 @@ def register(app: typer.Typer) -> None:
                        f"({diagonal:.0f} m): some cells may be out of reach", err=True)
         cfgs = []
         for n in range(instance, instance + count):
-            probe = SitlConfig(instance=n, gcs_remote_port=14550 + n if gcs_port_per_instance else None)
+            try:
+                probe = SitlConfig(instance=n, gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
+            except ValueError as e:
+                raise typer.BadParameter(str(e), param_hint="--bind") from e
             for port, what in ((probe.api_ports[0], "API link"), (probe.gcs_ports[0], "GCS link")):
                 if udp_port_taken(port):
                     raise typer.BadParameter(
@@ -130,7 +135,7 @@ def register(app: typer.Typer) -> None:
                              target_step_s=target_step_s,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
-                             gcs_remote_port=14550 + n if gcs_port_per_instance else None)
+                             gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
             cfgs.append(cfg)
             api, gcs = cfg.api_ports[1], cfg.gcs_ports[1]
             typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}):")

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_sigterm_finalises_the_tlog_with_provenance(tmp_path: Path) -> None:
     p = subprocess.Popen([sys.executable, "-m", "missions", "sitl", "--tlog", str(tmp_path / "v.tlog"), "--physics",
-                          "kinematic", "--instance", "39", "--field-out", str(tmp_path / "f.json")], cwd=ROOT,
+                          "kinematic", "--instance", "39", "--field-out", str(tmp_path / "f.json"),
+                          "--bind", "127.0.0.1"], cwd=ROOT,
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         end = time.monotonic() + 60
@@ -34,3 +35,12 @@ def test_sigterm_finalises_the_tlog_with_provenance(tmp_path: Path) -> None:
     assert meta["kind"] == "sitl tlog" and "git_revision" in meta
     log = mavutil.mavlink_connection(str(logs[0]))
     assert log.recv_match(type="HEARTBEAT") is not None
+
+
+def test_a_bad_bind_address_is_refused_by_name(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from missions.cli import app
+
+    r = CliRunner().invoke(app, ["sitl", "--bind", "nowhere", "--duration", "1", "--field-out", str(tmp_path / "f.json")])
+    assert r.exit_code == 2 and "nowhere" in r.output, r.output
