@@ -34,7 +34,7 @@ def test_cli_names_the_bad_value(tmp_path: Path) -> None:
 
 
 def test_a_diverging_run_stops_and_writes_no_model(tmp_path: Path) -> None:
-    ds = synthesize(GridConfig(), 40, 0, tmp_path / "ds", progress=False)
+    ds = synthesize(GridConfig(), 12, 0, tmp_path / "ds", progress=False)
     tc = TrainConfig(epochs=2, folds=2, run_folds=1, batch=16, optimizer="sgd", lr=1e30, seed=0)
     with pytest.raises(ValueError, match="diverged"):
         run(ds, tmp_path / "out", tc)
