@@ -53,6 +53,7 @@ def signals_raise() -> Iterator[SignalState]:
         if state.bringing_down:
             state.during_abort += 1
             return
+        state.bringing_down = True  # from here on a signal only counts: no second raise mid-abort
         raise Interrupted(signum)
 
     old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
