@@ -35,6 +35,7 @@ def register(app: typer.Typer) -> None:
         targets: int | None = typer.Option(None, "--targets", help="How many targets to find, |R| (default: 5)."),
         distribution: Dist | None = typer.Option(None, "--distribution", help="Target placement (default: random)."),
         motion: Motion | None = typer.Option(None, "--motion", help="Target motion (default: static)."),
+        cell_m: float | None = typer.Option(None, "--cell-m", help="Cell size (m) (default: field file, else 2)."),
         policy: str | None = typer.Option(None, "--policy", help="A registered policy (see `uavsearch eval --help`)."),
         checkpoint: Path | None = typer.Option(None, "--checkpoint", help="A trained network or DRQN checkpoint."),
         altitude: float = typer.Option(3.5, "--altitude", help="Search altitude above home (m), 1 to 30."),
@@ -86,6 +87,9 @@ def register(app: typer.Typer) -> None:
         _check(abort_timeout > 0, abort_timeout, "--abort-timeout", "must be > 0 s")
         _check(hold_time >= 0, hold_time, "--hold-time", "must be >= 0 s")
         _check(max_moves is None or max_moves >= 1, max_moves, "--max-moves", "must be >= 1")
+        cell = pick(cell_m, fs.cell_m if fs is not None else 2.0)
+        _check(cell == 2.0, cell, "--cell-m", "only 2 m cells are flown so far (the detector and the camera "
+               "altitude are built for 2 m)")
         try:
             motion_v = motion.value if motion is not None else g0.motion
             grid = GridConfig(

@@ -21,7 +21,7 @@ def _text(output: str) -> str:
 
 def test_bad_flight_arguments_are_refused_by_value(tmp_path: Path) -> None:
     for args, words in ((["--altitude", "-3"], ["-3", "--altitude"]), (["--altitude", "nan"], ["nan", "finite"]),
-                        (["--max-moves", "0"], ["0", "--max-moves"]), (["--move-timeout", "0"], ["--move-timeout"]),
+                        (["--max-moves", "0"], ["0", "--max-moves"]), (["--cell-m", "3"], ["3.0", "--cell-m"]), (["--move-timeout", "0"], ["--move-timeout"]),
                         (["--targets", "0"], ["n_targets"]), (["--policy", "nope"], ["unknown policy", "nope"]),
                         (["--policy", "oracle"], ["oracle", "truth"]),
                         (["--checkpoint", str(tmp_path / "x.pt")], ["x.pt", "does not exist"])):
