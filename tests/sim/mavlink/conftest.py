@@ -1,7 +1,7 @@
 import itertools
-import socket
 
 import pytest
+from udp_ports import free_udp_port
 
 from sim.mavlink import Sitl, SitlConfig
 
@@ -9,11 +9,6 @@ _instances = itertools.count(11)
 PORTS = ("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port")
 
 
-def free_udp_port() -> int:
-    """A UDP port the OS has just handed out, so parallel tests and vehicles never meet."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture

@@ -5,10 +5,10 @@ import asyncio
 
 import numpy as np
 import pytest
-from conftest import free_udp_port
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from test_mavsdk_flight import _autopilot, _until
+from udp_ports import free_udp_port
 
 from sim.gridworld import cell_to_ned
 from sim.mavlink import Sitl, SitlConfig, SitlFleet

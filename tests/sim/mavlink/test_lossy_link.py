@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 import pytest
-from conftest import free_udp_port
 from pymavlink import mavutil
+from udp_ports import free_udp_port
 
 from autopilot_bridge.images import FrameAssembler
 from missions.lossy import upload_like_qgc
