@@ -5,13 +5,23 @@ visitation map, ask the vehicle for a camera frame, turn it into the view I, let
 pick a move, and fly to the next cell's centre as an OFFBOARD setpoint. It sees only what a
 real companion computer would: MAVLink telemetry and frames, the field's corner and size, and
 how many targets to find (the paper's known |R|). The truth stays in the simulator.
+
+Decisions run on the vehicle's simulated clock, not on wall-clock races, so a flight given its
+seed is reproducible however loaded the machine is: decision k looks at the camera frame
+captured at simulated time t_k (asked for ahead, stamped by the vehicle) and at the GPS fixes
+stamped up to t_k, and t_{k+1} = t_k + decision_period_s. A leg that has not settled by t_k
+(by the vehicle's own telemetry stamped before t_k) slips the schedule by half a period and
+is counted; so is a frame asked for after its time had passed. Take-off starts on a lattice
+point of the same clock.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,12 +36,20 @@ from sim.gridworld.geodesy import HomePosition
 from .detector import DetectorConfig, frame_to_view, valid_moves
 from .estimator import GpsEstimator
 from .images import FrameRequester
-from .link import VehicleLink
+from .link import LinkError, VehicleLink
 from .probmap import ProbabilisticVisitationMap
 
 log = logging.getLogger(__name__)
 DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
 FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
+
+#: "settled" for the camera at t_k: within SETTLED_M of the setpoint and slower than
+#: SETTLED_SPEED by the autopilot's estimate. A hovering autopilot chases its GPS bias's jitter
+#: (measured at t_k: up to 0.29 m and 0.41 m/s with the simulated receiver), so bounds near
+#: those would slip the schedule at random and break reproducibility; a 2 m leg is over in ~2 s
+SETTLED_M = 0.6
+SETTLED_SPEED = 1.0
+VISIT_MAPS = ("probabilistic", "hard")
 
 
 @dataclass(frozen=True)
@@ -43,6 +61,16 @@ class SearchSpec:
     altitude_m: float = 3.5
     arrive_m: float = 0.25
     max_moves: int | None = None  # default: the grid's t_e
+    #: simulated seconds per decision: a 2 m leg and settling fit inside (sim targets step on it)
+    decision_period_s: float = 4.0
+    #: "probabilistic": visits spread over the position posterior; "hard": the believed cell only
+    visit_map: str = "probabilistic"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
+            raise ValueError(f"decision_period_s must be > 0 (got {self.decision_period_s})")
+        if self.visit_map not in VISIT_MAPS:
+            raise ValueError(f"visit_map must be one of {VISIT_MAPS} (got {self.visit_map!r})")
 
 
 @dataclass
@@ -51,8 +79,19 @@ class SearchLog:
     believed_found: list[int] = field(default_factory=list)  # move index of each believed find
     posterior_sd_m: list[float] = field(default_factory=list)
     decision_ms: list[float] = field(default_factory=list)
+    #: per decision: the simulated time of its frame and fixes, and the position posterior then
+    times_s: list[float] = field(default_factory=list)
+    posterior_mean_ne: list[list[float]] = field(default_factory=list)
+    posterior_cov_ne: list[list[list[float]]] = field(default_factory=list)
+    #: per decision: the target channel of the 3 x 3 view I the detector made of the frame
+    seen: list[list[list[int]]] = field(default_factory=list)
     frames: int = 0
     frames_missing: int = 0
+    #: times the schedule slipped half a period because a leg had not settled at t_k
+    schedule_slips: int = 0
+    #: frames captured after their time because this computer asked too late (too slow for
+    #: the simulation's speed-up): those decisions are not reproducible
+    late_frames: int = 0
     wall_s: float = 0.0
 
 
@@ -86,6 +125,11 @@ class PolicyService:
         self._stream_stop = threading.Event()
         self._alive_until = float("inf")  # the decision loop's deadline (see _expect)
         self._last_gps_t = -1.0
+        self._fixes: deque = deque()  # (t, ned, eph, epv) received, not yet fused
+        self._fix_lock = threading.Lock()
+        self._local: deque = deque(maxlen=400)  # (t, n, e, vn, ve): the autopilot's estimate
+        self.sim_time_s = 0.0  # the latest simulated time any telemetry was stamped with
+        self.t_ref: float | None = None  # the lattice point take-off started on
         link.add_handler(self._on_message)
 
     # -- frames: field NED (origin = cell (0,0)) vs the autopilot's local NED (origin = home) --
@@ -98,13 +142,43 @@ class PolicyService:
         return np.array([ne_field[0] - off[0], ne_field[1] - off[1]])
 
     def _on_message(self, msg) -> None:
-        if msg.get_type() == "GPS_RAW_INT" and msg.fix_type >= 3 and msg.time_usec * 1e-6 > self._last_gps_t:
+        kind = msg.get_type()
+        if kind == "GPS_RAW_INT" and msg.fix_type >= 3 and msg.time_usec * 1e-6 > self._last_gps_t:
             t = msg.time_usec * 1e-6
             self._last_gps_t = t
             ned = self.spec.origin.geodetic_to_ned(msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3)
             eph = msg.h_acc * 1e-3 if msg.h_acc else msg.eph * 1e-2
             epv = msg.v_acc * 1e-3 if msg.v_acc else msg.epv * 1e-2
-            self.estimator.update(t, ned, eph, epv)
+            with self._fix_lock:
+                self._fixes.append((t, ned, eph, epv))
+            self.sim_time_s = max(self.sim_time_s, t)
+        elif kind == "LOCAL_POSITION_NED":
+            t = msg.time_boot_ms * 1e-3
+            self._local.append((t, msg.x, msg.y, msg.vx, msg.vy))
+            self.sim_time_s = max(self.sim_time_s, t)
+
+    def fuse_until(self, t: float) -> None:
+        """Fuse the received fixes stamped up to simulated time t, in order; later ones wait,
+        so the posterior at a decision does not depend on how fast the link delivered."""
+        with self._fix_lock:
+            due = []
+            while self._fixes and self._fixes[0][0] <= t + 1e-6:
+                due.append(self._fixes.popleft())
+        for ft, ned, eph, epv in due:
+            self.estimator.update(ft, ned, eph, epv)
+
+    def _settled_at(self, t: float, local_ne: np.ndarray) -> bool:
+        """Settled on the setpoint at simulated time t, by the autopilot's telemetry stamped
+        within a few samples before t (deterministic given the trajectory)."""
+        near = [x for x in list(self._local) if t - 0.25 <= x[0] <= t + 1e-6]
+        if not near:
+            return False
+        _, n, e, vn, ve = near[-1]
+        near_m = max(self.spec.arrive_m, SETTLED_M)
+        return bool(np.hypot(n - local_ne[0], e - local_ne[1]) < near_m and np.hypot(vn, ve) < SETTLED_SPEED)
+
+    def wait_sim_time(self, t: float, timeout: float) -> None:
+        self.link.wait_for(lambda: self.sim_time_s >= t, timeout, f"simulated time {t:.1f} s")
 
     def _expect(self, seconds: float) -> None:
         """The decision loop promises its next step within `seconds`; past that it is hung and
@@ -131,7 +205,13 @@ class PolicyService:
         link.wait_heartbeat()
         link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
                       timeout, "GPS fix and home position")
-        link.wait_for(lambda: self.estimator.initialised, timeout, "a position estimate")
+        link.wait_for(lambda: bool(self._fixes) or self.estimator.initialised, timeout, "a position estimate")
+        # start on a lattice point of the simulated clock, so a flight's schedule does not
+        # depend on how long this process took to start
+        period = self.spec.decision_period_s
+        self.t_ref = period * math.ceil((self.sim_time_s + 0.5) / period)
+        self.wait_sim_time(self.t_ref, timeout)
+        self.fuse_until(self.t_ref)
         link.arm()
         link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
         link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
@@ -143,25 +223,37 @@ class PolicyService:
         time.sleep(0.3)  # PX4 wants a setpoint stream before OFFBOARD
         link.set_mode("OFFBOARD")
 
-    def _fly_to(self, cell: np.ndarray, timeout: float) -> None:
-        ne = cell_to_ned(cell)
-        local = self.field_to_local(ne)
+    def _fly_to(self, cell: np.ndarray) -> np.ndarray:
+        """Send the new setpoint at once (the stream repeats it); returns it in local NED."""
+        local = self.field_to_local(cell_to_ned(cell))
         self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
-        self._expect(timeout + DECISION_DEADLINE_S)
-
+        self._expect(DECISION_DEADLINE_S)
+        self.link.set_position_ned(*self._setpoint)
         if self.link.telemetry.mode != "OFFBOARD":  # the autopilot dropped out (e.g. lost setpoints)
             self.link.set_mode("OFFBOARD")
+        return local
 
-        def arrived() -> bool:
-            # settled on the setpoint by the autopilot's own estimate, so the camera looks
-            # straight down on the cell (up to the GPS error the posterior accounts for)
-            tl = self.link.telemetry.local
-            if "n" not in tl:
-                return False
-            off = np.hypot(tl["n"] - local[0], tl["e"] - local[1])
-            return bool(off < self.spec.arrive_m and np.hypot(tl["vn"], tl["ve"]) < 0.25)
-
-        self.link.wait_for(arrived, timeout, f"arrival over cell {tuple(cell)}")
+    def _capture(self, t_k: float, local: np.ndarray, cell: np.ndarray, timeout: float) -> tuple:
+        """The frame of decision k: captured at simulated time t_k once the leg has settled,
+        else at the next half-period (a slip). Returns (frame or None, its simulated time)."""
+        half = self.spec.decision_period_s / 2
+        deadline = time.monotonic() + timeout
+        self._expect(timeout + FRAME_DEADLINE_S)
+        t_at = t_k
+        while True:
+            frame, t_frame = self.frames.capture(t_at)
+            if frame is None:
+                return None, max(t_at, self.sim_time_s)
+            t_frame = t_at if t_frame is None else t_frame
+            if self._settled_at(t_frame, local):
+                # a frame captured later than asked (this computer or its link too slow for
+                # the speed-up) is flown on, counted: that decision is not reproducible
+                self.log.late_frames += int(t_frame > t_at + 0.1)
+                return frame, t_frame
+            self.log.schedule_slips += 1
+            if time.monotonic() > deadline:
+                raise LinkError(f"no settled arrival over cell {tuple(int(c) for c in cell)} within {timeout:.0f} s")
+            t_at = t_frame + half
 
     def run(self, timeout_per_move: float = 20.0) -> SearchLog:
         g = self.spec.grid
@@ -169,17 +261,25 @@ class PolicyService:
         t_start = self.clock()
         post = self.estimator.posterior()
         cell = np.clip(nearest_cell(post.mean_ned[:2]), [0, 0], [g.width - 1, g.height - 1])
-        self._fly_to(cell, timeout_per_move)
+        local = self._fly_to(cell)
+        # the first decision: take-off and the first leg fit in three periods
+        t_k = (self.t_ref if self.t_ref is not None else self.sim_time_s) + 3 * self.spec.decision_period_s
         self.policy.reset(g, 1, int(self.rng.integers(1 << 30)))
         found = 0
         for move in range(max_moves + 1):
+            frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
             t0 = time.perf_counter()
-            post = self.estimator.posterior()
-            self.pmap.visit(post.mean_ned[:2], post.horizontal_cov)
+            self.fuse_until(t_k)
+            post = self.estimator.posterior(t_k)
+            if self.spec.visit_map == "hard":
+                self.pmap.visit(cell_to_ned(cell), np.eye(2) * 1e-6)
+            else:
+                self.pmap.visit(post.mean_ned[:2], post.horizontal_cov)
             self.log.posterior_sd_m.append(float(np.sqrt(post.horizontal_cov.trace() / 2)))
             self.log.cells.append((int(cell[0]), int(cell[1])))
-            self._expect(FRAME_DEADLINE_S)
-            frame = self.frames.request()
+            self.log.times_s.append(float(t_k))
+            self.log.posterior_mean_ne.append([float(v) for v in post.mean_ned[:2]])
+            self.log.posterior_cov_ne.append(post.horizontal_cov.tolist())
             if frame is None:
                 self.log.frames_missing += 1
                 view = np.zeros((3, 3, 3), np.uint8)
@@ -187,6 +287,7 @@ class PolicyService:
             else:
                 self.log.frames += 1
                 view = frame_to_view(frame, cell, g.width, g.height, self.det)
+            self.log.seen.append(view[0].astype(int).tolist())
             if view[0, 1, 1] and not self.pmap.met[cell[1], cell[0]] > 0.5:
                 found += 1
                 self.pmap.mark_target()
@@ -213,7 +314,8 @@ class PolicyService:
             self.log.decision_ms.append(1e3 * (time.perf_counter() - t0))
             if not stay:
                 cell = cell + DELTAS[a]
-                self._fly_to(cell, timeout_per_move)
+                local = self._fly_to(cell)
+            t_k = t_k + self.spec.decision_period_s
         self.log.wall_s = self.clock() - t_start
         return self.log
 

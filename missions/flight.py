@@ -57,28 +57,118 @@ def truly_met(track: np.ndarray, herd: np.ndarray) -> list[bool]:
     return near.any(axis=0).tolist()
 
 
+#: the 95 % point of chi-square with 2 degrees of freedom
+CHI2_2_95 = 5.991464547107979
+
+
+def grid_moves(policy, episode, grid: GridConfig, seed: int) -> int:
+    """Moves the same policy takes on the same episode in the grid world (the flight's yardstick)."""
+    from policy.base import observe
+    from sim.gridworld import BatchGridWorld
+
+    policy.reset(grid, 1, seed, episode if policy.needs_truth else None)
+    world = BatchGridWorld(episode, seed, off_map=getattr(policy, "off_map", "random"))
+    while not world.done.all():
+        world.step(policy.act(observe(world)))
+    return int(world.t[0])
+
+
+def consistency(times_s: list, means: list, covs: list, truth: np.ndarray) -> dict[str, Any]:
+    """NEES of the horizontal position posterior against the simulator's truth at the same
+    simulated times (truth: (n, 3) rows of t, north, east in the field frame)."""
+    if not times_s or len(truth) < 2:
+        return {"nees": [], "nees_mean": None, "inside_95": None}
+    t = np.asarray(times_s)
+    true_ne = np.stack([np.interp(t, truth[:, 0], truth[:, 1]), np.interp(t, truth[:, 0], truth[:, 2])], axis=1)
+    err = np.asarray(means) - true_ne
+    nees = np.einsum("ki,kij,kj->k", err, np.linalg.inv(np.asarray(covs)), err)
+    return {"nees": nees.tolist(), "nees_mean": float(nees.mean()), "inside_95": float(np.mean(nees < CHI2_2_95)),
+            "true_ne": true_ne.tolist()}
+
+
+def offsets_from_cells(times_s: list, cells: list, truth: np.ndarray) -> list:
+    """Per decision: where the vehicle truly was relative to its cell's centre (north, east m)."""
+    from sim.gridworld import cell_to_ned
+
+    if not times_s or len(truth) < 2:
+        return []
+    t = np.asarray(times_s)
+    true_ne = np.stack([np.interp(t, truth[:, 0], truth[:, 1]), np.interp(t, truth[:, 0], truth[:, 2])], axis=1)
+    centres = np.array([cell_to_ned(np.array(c)) for c in cells])
+    return np.round(true_ne - centres, 3).tolist()
+
+
+def _truth_sitl(cfg):
+    """The SITL with the scorer's view of the truth: its true position recorded every tick
+    (simulated time, north, east in the field frame). Never given to the companion."""
+    from sim.mavlink import Sitl
+
+    class TruthSitl(Sitl):
+        def __init__(self, cfg) -> None:
+            super().__init__(cfg)
+            self.truth: list[tuple[float, float, float]] = []
+
+        def step(self) -> None:
+            super().step()
+            p = self.model.state.position_ned
+            self.truth.append((self.t, float(p[0] + self.spawn_ne[0]), float(p[1] + self.spawn_ne[1])))
+
+    return TruthSitl(cfg)
+
+
+def gps_config(sigma_m: float | None):
+    """The simulated receiver, its error (white and bias together) scaled to a total horizontal
+    sd of sigma_m per axis (None: the default receiver, 0.92 m)."""
+    from sim.vehicle.gps import GpsConfig
+
+    gps = GpsConfig()
+    if sigma_m is None:
+        return gps
+    if not sigma_m > 0:
+        raise ValueError(f"GPS sigma must be > 0 m (got {sigma_m})")
+    k = sigma_m / float(np.hypot(gps.sigma_h, gps.bias_sigma_h))
+    return GpsConfig(sigma_h=gps.sigma_h * k, bias_sigma_h=gps.bias_sigma_h * k)
+
+
 def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path | None = None,
                grid: GridConfig | None = None, instance: int = 0, max_moves: int | None = None,
                policy: str | None = None, on_abort: str = "rtl", progress: bool = False,
-               physics: str = "pybullet") -> dict[str, Any]:
+               physics: str = "pybullet", gps_sigma_m: float | None = None, visit_map: str = "probabilistic",
+               free_ports: bool = False, plot: bool = True, lockstep: bool = True) -> dict[str, Any]:
     """Start SITL in-process, fly a policy (default: the best shipped one) over MAVLink, write
     report + plot + tlog. Any failure or Ctrl-C brings the vehicle down first (missions.guarded);
-    report['outcome'] says how the flight ended, report['error'] what stopped it, if anything."""
+    report['outcome'] says how the flight ended, report['error'] what stopped it, if anything.
+
+    The policy and the companion's link exist before the vehicle starts, so the flight's
+    simulated schedule does not depend on how long loading took. The report compares the flight
+    with the same policy on the same episode in the grid world, and the position posterior with
+    the truth (NEES). free_ports: ports the OS hands out (parallel flights beside other tests)."""
     from autopilot_bridge.link import VehicleLink
     from autopilot_bridge.service import PolicyService, SearchSpec, save_log
     from missions.flight_policy import flight_policy
     from missions.guarded import EXIT_OK, EXIT_SHORT, guarded_search
     from missions.progress import FlightProgress
     from policy.groundtruth import optimal_lengths
-    from sim.mavlink import Sitl, SitlConfig
+    from sim.mavlink import SitlConfig
 
     grid = grid or GridConfig()
     pol = flight_policy(policy, checkpoint, grid, seed)  # before anything starts: can it fly this field?
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    ports = {}
+    if free_ports:
+        ports = dict(zip(("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port"),
+                         _free_udp_ports(4), strict=True))
+    gps = gps_config(gps_sigma_m)
     cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=grid,
-                     episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True)
-    sitl = Sitl(cfg).start()
+                     episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True, gps=gps,
+                     companion_lockstep=lockstep, **ports)
+    link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
+    try:
+        sitl = _truth_sitl(cfg).start()
+    except BaseException:
+        link.close()
+        raise
     track: list[np.ndarray] = []
     herd: list[np.ndarray] = []  # the targets' cells at the same instants as track
     stop = threading.Event()
@@ -92,8 +182,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
 
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
-    link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
-    spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves)
+    spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves, visit_map=visit_map)
     t0 = time.monotonic()
     try:
         with FlightProgress(f"flight ({pol.name})") if progress else _nothing() as bar:
@@ -115,10 +204,20 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     truly = truly_met(tr, np.array(herd[:n]) if n else np.zeros((0, len(targets), 2)))
     moves = max(len(log.cells) - 1, 0)
     optimal = int(optimal_lengths(sitl.episode)[0])
-    save_log(log, out / "search_log.json", outcome=end.to_dict())
+    in_grid = grid_moves(flight_policy(policy, checkpoint, grid, seed), sitl.episode, grid, seed)
+    truth = np.array(sitl.truth) if sitl.truth else np.zeros((0, 3))
+    cons = consistency(log.times_s, log.posterior_mean_ne, log.posterior_cov_ne, truth)
+    save_log(log, out / "search_log.json", outcome=end.to_dict(), true_ne=cons.get("true_ne", []))
     report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": physics},
                    policy=pol.name, outcome=end.to_dict(),
                    moves=moves, optimal_moves=optimal, ratio_to_optimal=moves / max(optimal, 1),
+                   grid_moves=in_grid, flight_grid_ratio=moves / max(in_grid, 1), visit_map=visit_map,
+                   gps={"sigma_h": gps.sigma_h, "bias_sigma_h": gps.bias_sigma_h, "bias_tau_s": gps.bias_tau_s},
+                   decision_period_s=spec.decision_period_s, schedule_slips=log.schedule_slips,
+                   late_frames=log.late_frames, cells=[list(c) for c in log.cells],
+                   offset_from_cell_m=offsets_from_cells(log.times_s, log.cells, truth),
+                   nees_mean=cons["nees_mean"], nees_inside_95=cons["inside_95"], nees=cons["nees"],
+                   sitl_errors=len(sitl.errors), lockstep=lockstep, lockstep_timeouts=sitl.lockstep_timeouts,
                    targets=int(grid.n_targets), believed_found=len(log.believed_found),
                    truly_found=int(sum(truly)), frames=log.frames, frames_missing=log.frames_missing,
                    mean_posterior_sd_m=float(np.mean(log.posterior_sd_m)) if log.posterior_sd_m else None,
@@ -127,7 +226,21 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    simulated_s=sim_time, wall_s=time.monotonic() - t0, error=error,
                    tlog=str(out / "flight.tlog"), plot=str(out / "search.png"))
     atomic_write_json(out / "report.json", report)
-    if log.cells:
+    if plot and log.cells:
         _plot(out / "search.png", grid, targets, log.cells, tr,
-              f"{moves} moves (optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)")
+              f"{moves} moves (grid world {in_grid}, optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)")
     return report
+
+
+def _free_udp_ports(n: int) -> list[int]:
+    """n distinct UDP ports the OS has just handed out."""
+    import socket
+
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()

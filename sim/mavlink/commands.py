@@ -189,6 +189,11 @@ def request_message(v: MavlinkVehicle, c: Command) -> Outcome:
         return M.MAV_RESULT_UNSUPPORTED
     if msg_id == M.MAVLINK_MSG_ID_GPS_RAW_INT and v.fix is None:
         return M.MAV_RESULT_TEMPORARILY_REJECTED
+    if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE and c.p[1] > 0:
+        # param 2 (ours, like PX4's message-specific params): capture at this simulated time (s)
+        if not math.isfinite(c.p[1]):
+            return M.MAV_RESULT_DENIED
+        return M.MAV_RESULT_ACCEPTED, lambda: v.capture_at(c.p[1])
     return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(msg_id)
 
 

@@ -51,6 +51,16 @@ class Flying:
         self._velocity_control = False
         self.model.set_position_target(np.asarray(target_est, float) - self.gps.bias, yaw=yaw, speed=speed)
 
+    def _follow_estimate(self) -> None:
+        """A new GPS fix moved the estimate: the position controller tracks the OFFBOARD
+        setpoint in the estimate frame on every fix, as an autopilot's does, not only when the
+        next setpoint message happens to arrive (which would tie the true path to wall-clock
+        message timing and make flights irreproducible)."""
+        s = self.model.state
+        if (self.mode == "OFFBOARD" and self._target is not None and not self._velocity_control
+                and s.armed and not s.landed):
+            self._command_model(self._target, speed=self.params["MPC_XY_VEL_MAX"])
+
     def _hold_here(self) -> None:
         s = self.model.state
         self._target = self.estimate()

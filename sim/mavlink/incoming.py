@@ -68,6 +68,7 @@ class Incoming:
 
     def _on_command(self, msg: mavlink.MAVLink_message) -> None:
         self.counters.commands += 1
+        self.hold_for_companion = False  # the companion acts: time runs on
         cmd = Command.from_msg(msg)
         result, then = execute(self, cmd)
         if result != M.MAV_RESULT_ACCEPTED:
@@ -79,6 +80,7 @@ class Incoming:
     def _on_setpoint(self, msg: mavlink.MAVLink_message) -> None:
         """OFFBOARD setpoints: accepted (and timed) in any mode, flown only in OFFBOARD, as PX4."""
         self._offboard_wall_t = self.clock()
+        self._offboard_sim_t = self.t
         if self.mode != "OFFBOARD":
             return
         mask = msg.type_mask

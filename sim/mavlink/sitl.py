@@ -34,6 +34,7 @@ from .udp import UdpLink
 from .vehicle import MavlinkVehicle
 
 TICK_S = 0.02
+LOCKSTEP_TIMEOUT_S = 5.0  # wall-clock seconds a companion may think before time runs on
 log = logging.getLogger(__name__)
 
 
@@ -58,6 +59,11 @@ class SitlConfig:
     host: str = "127.0.0.1"
     bind: str = "0.0.0.0"  # the local address the vehicle's ports are bound to (`sitl --bind`)
     geofence: Geofence = field(default_factory=Geofence)
+    gps: GpsConfig = field(default_factory=GpsConfig)  # the receiver's error model
+    #: hold simulated time after sending a frame asked for ahead (a companion's decision point)
+    #: until the companion's next command, at most LOCKSTEP_TIMEOUT_S of wall-clock time: PX4
+    #: SITL's lockstep, extended to the companion, so a loaded machine cannot change a flight
+    companion_lockstep: bool = False
     system_id: int | None = None  # None: instance + 1, as PX4 SITL
     # port overrides (None: PX4 SITL's numbering for this instance)
     api_local_port: int | None = None
@@ -92,7 +98,7 @@ class SitlConfig:
     def to_dict(self) -> dict[str, Any]:
         """The config for provenance records; the signing key itself is never written out."""
         d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("signing_key", "grid")}
-        d.update(home=asdict(self.home), geofence=asdict(self.geofence), grid=self.grid.to_dict(),
+        d.update(home=asdict(self.home), geofence=asdict(self.geofence), grid=self.grid.to_dict(), gps=asdict(self.gps),
                  signing=self.signing_key is not None, tlog=None if self.tlog is None else str(self.tlog),
                  sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports)
         return d
@@ -171,7 +177,7 @@ class Sitl:
             except OSError:
                 links[0].close()
                 raise
-        self.gps = GpsModel(self.home, cfg.seed, GpsConfig())
+        self.gps = GpsModel(self.home, cfg.seed, cfg.gps)
         self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera, system_id=cfg.sysid,
                                       signing=cfg.signing_key is not None)
         for name, value in (("GF_MAX_HOR_DIST", cfg.geofence.max_horizontal_m),
@@ -181,6 +187,8 @@ class Sitl:
                 for link in links:
                     link.close()
                 raise ValueError(f"geofence: {why}")
+        self.vehicle.lockstep = cfg.companion_lockstep
+        self.lockstep_timeouts = 0
         self.t = 0.0
         self.errors: list[str] = []
         self._stop = threading.Event()
@@ -242,7 +250,20 @@ class Sitl:
 
     def run(self, duration: float | None = None) -> None:
         wall0 = time.monotonic()
+        v = self.vehicle
         while not self._stop.is_set() and (duration is None or self.t < duration):
+            if v.hold_for_companion:
+                held = time.monotonic() - v.hold_wall_t
+                if held > LOCKSTEP_TIMEOUT_S:
+                    v.hold_for_companion = False
+                    self.lockstep_timeouts += 1
+                else:
+                    ready, _, _ = select.select([link.sock for link in v.links], [], [], 0.01)
+                    if ready:
+                        v.service()
+                    if not v.hold_for_companion:  # released: pace on from here, not catch up
+                        wall0 += time.monotonic() - v.hold_wall_t
+                    continue
             try:
                 self.step()
             except Exception:  # a bug in one tick must not take the vehicle off the link

@@ -50,8 +50,22 @@ class Streams:
             self._next_due[msg_id] = self.t + 1.0 / hz
             self._next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
             self.send_message(msg_id)
+        if self._frame_times and self.t + 1e-9 >= self._frame_times[0]:
+            due = self._frame_times.pop(0)
+            # a capture asked for again (its frame lost on the way) gets the same stamped
+            # picture, so the receiver can fill its gaps; a new time gets a new picture
+            self._fresh_frame = self._fresh_frame or self._frame_cache_t < due - 1e-6
+            self.queue_frame()
+            if self.lockstep and self.camera is not None:  # the companion decides on this frame
+                self.hold_for_companion, self.hold_wall_t = True, self.clock()
         if self._pending_frames or (self.params["UAVS_CAM_RATE"] > 0 and self.t >= self._next_frame_t):
             self._send_frame()
+
+    def capture_at(self, time_s: float) -> None:
+        """Capture a frame on the first tick at or after simulated time `time_s` (at once if it
+        has passed): a companion that decides on simulated time asks for its frames ahead."""
+        self._frame_times = sorted([*self._frame_times, float(time_s)])[-8:]
+        self.hold_for_companion = False
 
     def snapshot(self) -> Snapshot:
         return Snapshot(self.t, self.model.state, self.estimate(), self.home, self.fix, self.mode, self.sysid,
@@ -82,11 +96,14 @@ class Streams:
         s = self.model.state
         now, pos = self.clock(), s.position_ned.copy()
         cached = self._frame_cache
-        if self._pending_frames and cached is not None and now - cached[0] <= FRAME_REUSE_S and np.linalg.norm(pos - cached[1]) <= FRAME_REUSE_M:
-            data, (h, w) = cached[2], cached[3]
+        if (self._pending_frames and not self._fresh_frame and cached is not None and now - cached[0] <= FRAME_REUSE_S
+                and np.linalg.norm(pos - cached[1]) <= FRAME_REUSE_M):
+            data, (h, w) = cached[2], cached[3]  # the same picture, with its own capture time
         else:
+            self._fresh_frame = False
+            self._frame_cache_t = self.t
             frame = self.camera(pos, float(s.attitude_rpy[2]))
-            data, (h, w) = encode_png(frame), frame.shape[:2]
+            data, (h, w) = encode_png(frame, self.t), frame.shape[:2]
             self._frame_cache = (now, pos, data, (h, w))
         for m in png_messages(self.mav, data, w, h):
             self.send(m)

@@ -75,6 +75,7 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         self.counters = VehicleCounters()
         self._target: np.ndarray | None = None  # NED hold/goto target (estimate frame)
         self._offboard_wall_t = -1e9  # when the last offboard setpoint arrived
+        self._offboard_sim_t = -1e9  # the same in simulated time
         self._manual_wall_t = -1e9  # when the last MANUAL_CONTROL arrived
         self._sticks = np.zeros(4)  # forward, right, up, yaw rate: each in [-1, 1]
         self._velocity_control = False  # the model tracks a velocity, not a position
@@ -82,6 +83,12 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         self._rtl_phase = 0
         self._wp_reached = -1
         self._pending_frames = 0
+        self._frame_times: list[float] = []  # simulated times of frames asked for ahead
+        self._fresh_frame = False  # the next frame must be captured anew (a timed capture)
+        self._frame_cache_t = -1.0  # simulated time the cached frame was captured at
+        self.lockstep = False  # hold time at a companion's decision points (SitlConfig)
+        self.hold_for_companion = False
+        self.hold_wall_t = 0.0
         self._frame_cache: tuple | None = None  # (wall time, position, PNG bytes, (h, w)) of the last frame
         self._statustext_id = 0
         self.battery = Battery()
@@ -127,7 +134,10 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         return ok
 
     def offboard_fresh(self) -> bool:
-        return self.clock() - self._offboard_wall_t <= self.params["COM_OF_LOSS_T"]
+        """Lost only when the setpoints are stale in wall-clock time (the client's) and in
+        simulated time too: a simulation stalled by a loaded machine has not lost its client."""
+        limit = self.params["COM_OF_LOSS_T"]
+        return self.clock() - self._offboard_wall_t <= limit or self.t - self._offboard_sim_t <= limit
 
     def manual_fresh(self) -> bool:
         return self.clock() - self._manual_wall_t <= self.params["COM_RC_LOSS_T"]
@@ -158,6 +168,7 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
             self.fix = None
         elif fix is not None:
             self.fix = fix
+            self._follow_estimate()
         self.battery.step(dt, s.armed, s.armed and not s.landed, self.params["UAVS_BAT_ENDUR_S"])
         s.battery_remaining, s.battery_voltage = self.battery.reading, self.battery.voltage
         self._check_failsafes()

@@ -1,0 +1,59 @@
+"""`uavsearch flight-table` and `uavsearch gps-table`: real flights, many seeds, in parallel
+processes (each flight its own SITL and ports): the flight vs the grid world, and the search
+under GPS noise. Results with provenance in results/."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def _seeds(first: int, n: int) -> list[int]:
+    if n < 1:
+        raise typer.BadParameter(f"{n}: need at least one seed", param_hint="--seeds")
+    return list(range(first, first + n))
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("flight-table")
+    def flight_table(
+        seeds: int = typer.Option(20, "--seeds", help="How many seeds (flights)."),
+        first_seed: int = typer.Option(0, "--first-seed"),
+        workers: int = typer.Option(2, "--workers", min=1, help="Flights at once (processes)."),
+        speedup: float = typer.Option(10.0, "--speedup", min=0.5, help="Simulation speed-up of each flight."),
+        policy: str | None = typer.Option(None, "--policy", help="Registered policy (default: the flight default)."),
+        max_moves: int | None = typer.Option(None, "--max-moves", min=1, help="Cap per flight (default: t_e)."),
+        out: Path = typer.Option(Path("results"), "--out"),
+    ) -> None:
+        """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
+        from missions.flight_table import flight_vs_grid
+
+        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves)
+        s = doc["summary"]
+        typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
+                   f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")
+
+    @app.command("gps-table")
+    def gps_table(
+        seeds: int = typer.Option(12, "--seeds", help="Flights per row."),
+        first_seed: int = typer.Option(0, "--first-seed"),
+        sigma: list[float] = typer.Option([0.5, 1.0, 2.0], "--sigma", help="GPS sigma per axis (m), repeatable."),
+        visit_map: list[str] = typer.Option(["hard", "probabilistic"], "--map", help="hard and/or probabilistic."),
+        workers: int = typer.Option(2, "--workers", min=1),
+        speedup: float = typer.Option(10.0, "--speedup", min=0.5),
+        policy: str | None = typer.Option(None, "--policy"),
+        max_moves: int = typer.Option(150, "--max-moves", min=1),
+        out: Path = typer.Option(Path("results"), "--out"),
+    ) -> None:
+        """Moves and targets found over real flights for each GPS sigma, hard vs probabilistic map."""
+        from missions.flight_table import gps_noise_table
+
+        bad = [s for s in sigma if not s > 0]
+        if bad:
+            raise typer.BadParameter(f"{bad[0]}: a GPS sigma must be > 0 m", param_hint="--sigma")
+        wrong = [m for m in visit_map if m not in ("hard", "probabilistic")]
+        if wrong:
+            raise typer.BadParameter(f"{wrong[0]!r}: must be hard or probabilistic", param_hint="--map")
+        gps_noise_table(sigma, visit_map, _seeds(first_seed, seeds), out, workers, speedup, policy, max_moves)
+        typer.echo(f"{out / 'gps_noise.md'}")
