@@ -50,6 +50,7 @@ FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
 SETTLED_M = 0.6
 SETTLED_SPEED = 1.0
 VISIT_MAPS = ("probabilistic", "hard")
+KEEP_FRAMES = 7
 
 
 @dataclass(frozen=True)
@@ -119,6 +120,10 @@ class PolicyService:
         self.estimator = GpsEstimator()
         self.pmap = ProbabilisticVisitationMap(spec.grid.width, spec.grid.height)
         self.frames = FrameRequester(link)
+        #: a few camera frames for the operator's report: (move, frame, target channel of I);
+        #: the first, those where the detector saw a target (up to KEEP_FRAMES) and the last
+        self.kept_frames: list[tuple[int, np.ndarray, list]] = []
+        self.last_frame: tuple[int, np.ndarray, list] | None = None
         self.log = SearchLog()
         self.clock = clock
         self._setpoint: np.ndarray | None = None  # local NED (autopilot frame)
@@ -129,7 +134,9 @@ class PolicyService:
         self._fix_lock = threading.Lock()
         self._local: deque = deque(maxlen=400)  # (t, n, e, vn, ve): the autopilot's estimate
         self.sim_time_s = 0.0  # the latest simulated time any telemetry was stamped with
-        self.t_ref: float | None = None  # the lattice point take-off started on
+        self.t_ref: float | None = None  # the schedule's origin on the simulated clock
+        self._first_fix_t: float | None = None
+        self._setpoint_lock = threading.Lock()
         link.add_handler(self._on_message)
 
     # -- frames: field NED (origin = cell (0,0)) vs the autopilot's local NED (origin = home) --
@@ -151,6 +158,8 @@ class PolicyService:
             epv = msg.v_acc * 1e-3 if msg.v_acc else msg.epv * 1e-2
             with self._fix_lock:
                 self._fixes.append((t, ned, eph, epv))
+                if self._first_fix_t is None:
+                    self._first_fix_t = t
             self.sim_time_s = max(self.sim_time_s, t)
         elif kind == "LOCAL_POSITION_NED":
             t = msg.time_boot_ms * 1e-3
@@ -196,7 +205,8 @@ class PolicyService:
                 starved = True
             elif self._setpoint is not None:
                 starved = False
-                self.link.set_position_ned(*self._setpoint)
+                with self._setpoint_lock:  # never resend an old setpoint after a new one
+                    self.link.set_position_ned(*self._setpoint)
             time.sleep(0.05)
 
     # -- the mission ---------------------------------------------------------------------
@@ -206,16 +216,17 @@ class PolicyService:
         link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
                       timeout, "GPS fix and home position")
         link.wait_for(lambda: bool(self._fixes) or self.estimator.initialised, timeout, "a position estimate")
-        # start on a lattice point of the simulated clock, so a flight's schedule does not
-        # depend on how long this process took to start
+        # the schedule's origin: the lattice point after the first fix this link heard (0 s when
+        # the link was up before the vehicle started), not "now", which depends on how long
+        # this process took to get going; the start cell comes from the fixes up to it
         period = self.spec.decision_period_s
-        self.t_ref = period * math.ceil((self.sim_time_s + 0.5) / period)
-        self.wait_sim_time(self.t_ref, timeout)
-        self.fuse_until(self.t_ref)
+        self.t_ref = period * math.ceil((self._first_fix_t + 0.5) / period)
         link.arm()
         link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
         link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
                       timeout, f"take-off to {self.spec.altitude_m} m")
+        self.wait_sim_time(self.t_ref, timeout)
+        self.fuse_until(self.t_ref)
         local = link.telemetry.local
         self._setpoint = np.array([local["n"], local["e"], -self.spec.altitude_m])
         self._expect(DECISION_DEADLINE_S)
@@ -226,9 +237,10 @@ class PolicyService:
     def _fly_to(self, cell: np.ndarray) -> np.ndarray:
         """Send the new setpoint at once (the stream repeats it); returns it in local NED."""
         local = self.field_to_local(cell_to_ned(cell))
-        self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
         self._expect(DECISION_DEADLINE_S)
-        self.link.set_position_ned(*self._setpoint)
+        with self._setpoint_lock:
+            self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
+            self.link.set_position_ned(*self._setpoint)
         if self.link.telemetry.mode != "OFFBOARD":  # the autopilot dropped out (e.g. lost setpoints)
             self.link.set_mode("OFFBOARD")
         return local
@@ -288,6 +300,10 @@ class PolicyService:
                 self.log.frames += 1
                 view = frame_to_view(frame, cell, g.width, g.height, self.det)
             self.log.seen.append(view[0].astype(int).tolist())
+            if frame is not None:
+                self.last_frame = (move, frame, view[0].astype(int).tolist())
+                if len(self.kept_frames) < KEEP_FRAMES and (move == 0 or view[0].any()):
+                    self.kept_frames.append(self.last_frame)
             if view[0, 1, 1] and not self.pmap.met[cell[1], cell[0]] > 0.5:
                 found += 1
                 self.pmap.mark_target()

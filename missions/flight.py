@@ -33,6 +33,7 @@ def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: 
     if len(track):
         ax.plot(track[:, 0], track[:, 1], "-", color="tab:blue", alpha=0.45, lw=1, label="true track (physics)")
     ax.plot(c[:, 0], c[:, 1], "o-", color="tab:blue", ms=3, lw=1.5, label="decisions (cells)")
+    ax.plot(c[0, 0], c[0, 1], "^", color="tab:orange", ms=10, label="start")
     ax.plot(c[-1, 0], c[-1, 1], "s", color="tab:green", ms=10, label="end")
     ax.plot(targets[:, 0], targets[:, 1], "X", color="tab:red", ms=12, label="targets (truth)")
     ax.set_title(title, fontsize=10)
@@ -227,8 +228,18 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    tlog=str(out / "flight.tlog"), plot=str(out / "search.png"))
     atomic_write_json(out / "report.json", report)
     if plot and log.cells:
-        _plot(out / "search.png", grid, targets, log.cells, tr,
+        from dataclasses import asdict
+
+        from missions.flight_report import write_report
+
+        path = np.stack([truth[::5, 2] / 2.0, -truth[::5, 1] / 2.0], axis=1) if len(truth) else tr
+        _plot(out / "search.png", grid, targets, log.cells, path,
               f"{moves} moves (grid world {in_grid}, optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)")
+        frames = list(service.kept_frames)
+        if service.last_frame is not None and (not frames or frames[-1][0] != service.last_frame[0]):
+            frames.append(service.last_frame)
+        write_report(out, report, {**asdict(log), "true_ne": cons.get("true_ne", [])}, service.pmap.visited,
+                     service.pmap.met, targets, frames)
     return report
 
 
