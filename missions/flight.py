@@ -205,14 +205,21 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     truly = truly_met(tr, np.array(herd[:n]) if n else np.zeros((0, len(targets), 2)))
     moves = max(len(log.cells) - 1, 0)
     optimal = int(optimal_lengths(sitl.episode)[0])
-    in_grid = grid_moves(flight_policy(policy, checkpoint, grid, seed), sitl.episode, grid, seed)
+    try:
+        in_grid: int | None = grid_moves(flight_policy(policy, checkpoint, grid, seed), sitl.episode, grid, seed)
+    except Exception as e:  # noqa: BLE001 - a policy that fails in the grid world too: the report says so
+        in_grid = None
+        log_grid_error = f"{type(e).__name__}: {e}"
+    else:
+        log_grid_error = None
     truth = np.array(sitl.truth) if sitl.truth else np.zeros((0, 3))
     cons = consistency(log.times_s, log.posterior_mean_ne, log.posterior_cov_ne, truth)
     save_log(log, out / "search_log.json", outcome=end.to_dict(), true_ne=cons.get("true_ne", []))
     report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": physics},
                    policy=pol.name, outcome=end.to_dict(),
                    moves=moves, optimal_moves=optimal, ratio_to_optimal=moves / max(optimal, 1),
-                   grid_moves=in_grid, flight_grid_ratio=moves / max(in_grid, 1), visit_map=visit_map,
+                   grid_moves=in_grid, flight_grid_ratio=None if in_grid is None else moves / max(in_grid, 1),
+                   grid_error=log_grid_error, visit_map=visit_map,
                    gps={"sigma_h": gps.sigma_h, "bias_sigma_h": gps.bias_sigma_h, "bias_tau_s": gps.bias_tau_s},
                    decision_period_s=spec.decision_period_s, schedule_slips=log.schedule_slips,
                    late_frames=log.late_frames, cells=[list(c) for c in log.cells],

@@ -32,7 +32,7 @@ def _save(fig, path: Path) -> None:
 
 def summary_line(r: dict[str, Any]) -> str:
     parts = [f"{r['moves']} moves"]
-    if r.get("grid_moves") is not None:
+    if r.get("grid_moves") is not None and r.get("flight_grid_ratio") is not None:
         parts.append(f"grid world {r['grid_moves']} (flight/grid {r['flight_grid_ratio']:.2f})")
     parts.append(f"optimal {r['optimal_moves']}")
     parts.append(f"found {r['truly_found']}/{r['targets']} (truth), believed {r['believed_found']}")

@@ -81,7 +81,7 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
     interval for as many samples as decisions (strict) is given too."""
     from scipy.stats import chi2
 
-    ok = [r for r in rows if r["error"] is None]
+    ok = [r for r in rows if r["error"] is None and r["flight_grid_ratio"] is not None]
     ratios = np.array([r["flight_grid_ratio"] for r in ok]) if ok else np.zeros(0)
     nees = np.concatenate([r["nees"] for r in ok if r["nees"]]) if any(r["nees"] for r in ok) else np.zeros(0)
     found = sum(r["truly_found"] for r in ok)
