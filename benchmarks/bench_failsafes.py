@@ -92,7 +92,7 @@ def datalink_loss() -> dict:
 
 
 def battery() -> dict:
-    sitl, c = _vehicle({"UAVS_BAT_ENDUR_S": 60.0, "NAV_DLL_ACT": 0.0})  # no heartbeats here: DLL off
+    sitl, c = _vehicle({"UAVS_BAT_ENDUR_S": 60.0, "NAV_DLL_ACT": 0.0, "SIM_BAT_MIN_PCT": 0.0})  # no heartbeats here: DLL off
     t0, sim0 = time.monotonic(), sitl.t
     took = _wait_mode(sitl, {"AUTO.RTL"}, 60)
     r = sitl.vehicle.battery.remaining

@@ -45,6 +45,8 @@ def default_params() -> dict[str, Param]:
                                  "at emergency (PX4 default 0)", values=(0, 2, 3)),
         "SYS_FAILURE_EN": Param(0.0, 0.0, 1.0, "1: MAV_CMD_INJECT_FAILURE accepted", values=(0, 1)),
         "UAVS_BAT_ENDUR_S": Param(1500.0, 10.0, 36000.0, "battery endurance in hover from full (s)"),
+        "SIM_BAT_MIN_PCT": Param(50.0, 0.0, 100.0, "the simulated battery drains no lower than this (%), as PX4 "
+                                 "SITL: long simulations never run out; 0 to test the battery failsafes"),
         "SYS_AUTOSTART": Param(4001.0, 0.0, 1e6, "airframe: generic quadrotor x"),
         "UAVS_CAM_RATE": Param(0.0, 0.0, 30.0, "camera frames streamed per second (0: on request)"),
         "UAVS_SIGNING": Param(0.0, 0.0, 1.0, "1: MAVLink2 signing required (read-only, set at start)", True),

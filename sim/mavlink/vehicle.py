@@ -169,7 +169,8 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         elif fix is not None:
             self.fix = fix
             self._follow_estimate()
-        self.battery.step(dt, s.armed, s.armed and not s.landed, self.params["UAVS_BAT_ENDUR_S"])
+        self.battery.step(dt, s.armed, s.armed and not s.landed, self.params["UAVS_BAT_ENDUR_S"],
+                          self.params["SIM_BAT_MIN_PCT"] / 100.0)
         s.battery_remaining, s.battery_voltage = self.battery.reading, self.battery.voltage
         self._check_failsafes()
         self._fly()

@@ -112,6 +112,7 @@ def test_battery_drains_on_both_airframes_then_returns_and_lands(sitl_factory, p
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
         assert _set(g, "UAVS_BAT_ENDUR_S", 40.0) == pytest.approx(40.0)
+        assert _set(g, "SIM_BAT_MIN_PCT", 0.0) == 0.0  # PX4 SITL's battery stops at 50 % by default
         full = g.recv("BATTERY_STATUS", 3)
         assert full.battery_remaining == 100
         _airborne(g)
@@ -239,3 +240,16 @@ def test_injected_mavlink_signal_loss_fires_the_data_link_failsafe(sitl_factory)
         assert not sitl.vehicle.failures
     finally:
         g.close()
+
+
+def test_the_simulated_battery_stops_at_sim_bat_min_pct() -> None:
+    """As PX4 SITL: a long simulated flight (wall-clock waits at high speedup add simulated
+    minutes) must not end in a battery failsafe nobody asked for."""
+    from sim.mavlink.battery import Battery
+    from sim.mavlink.params import ParamStore
+
+    b, p = Battery(), ParamStore()
+    b.step(1e6, armed=True, in_air=True, endurance_s=p["UAVS_BAT_ENDUR_S"], min_remaining=p["SIM_BAT_MIN_PCT"] / 100)
+    assert b.remaining == pytest.approx(0.5) and b.remaining > p["BAT_LOW_THR"]
+    b.step(1e6, armed=True, in_air=True, endurance_s=1500.0, min_remaining=0.0)
+    assert b.remaining == 0.0
