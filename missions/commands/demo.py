@@ -55,10 +55,13 @@ def register(app: typer.Typer) -> None:
             except PolicyUnfit as e:
                 raise typer.BadParameter(str(e), param_hint="--policy") from e
             found = f"{r['truly_found']}/{r['targets']} targets found (truth), {r['believed_found']} believed"
-            typer.echo(f"flight: {r['moves']} moves (optimal {r['optimal_moves']}), {found}, "
+            vs_grid = ("" if r.get("flight_grid_ratio") is None else
+                       f", grid world {r['grid_moves']} on the same episode: flight/grid {r['flight_grid_ratio']:.2f}")
+            typer.echo(f"flight: {r['moves']} moves (optimal {r['optimal_moves']}{vs_grid}), {found}, "
                        f"{r['simulated_s']:.0f} s simulated in {r['wall_s']:.0f} s"
                        + (f"; error: {r['error']}" if r["error"] else ""))
-            typer.echo(f"flight report: {(out / 'flight').resolve()}/report.json, search.png, flight.tlog")
+            typer.echo(f"flight report: {(out / 'flight').resolve()}/report.md (open this first), report.json, "
+                       "flight.tlog")
             code = r["outcome"]["exit_code"]
             if r["error"]:
                 typer.echo(f"error: the flight stopped ({r['error']}); the vehicle was sent to {on_abort.value}: "
