@@ -17,8 +17,9 @@ def test_herd_moves_one_grid_step_per_decision_period_from_arming(sitl_factory) 
         link.wait_for(lambda: link.telemetry.gps.get("fix_type", 0) >= 3, 20, "a GPS fix")
         np.testing.assert_array_equal(sitl.target_cells(), paths[0])  # still before arming
         link.arm()
+        # the arming time is recorded on the simulation step after the ACK: wait for it
+        link.wait_for(lambda: sitl._motion_t0 is not None, 10, "the SITL to record the arming time")
         t0 = sitl._motion_t0
-        assert t0 is not None
         for k in (3, 7, 40, paths.shape[0] + 5):
             np.testing.assert_allclose(sitl.target_cells(t0 + 2.0 * k), paths[min(k, len(paths) - 1)])
         assert not np.array_equal(paths[0], paths[40]), "the herd does move over 40 decisions"
