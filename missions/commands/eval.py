@@ -20,7 +20,7 @@ def register(app: typer.Typer) -> None:
         policy: list[str] = typer.Option(["ns"], "--policy", "-p", help="Policy name; repeat for several."),
         episodes: int = typer.Option(1000, "--episodes", min=1),
         seed: int = typer.Option(0, "--seed", help="Seed of the test episodes (same for every policy)."),
-        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Checkpoint for dualstream/ssn/drqn."),
+        checkpoint: Path | None = typer.Option(None, "--checkpoint", help="Checkpoint for dualstream/ssn/drqn/searchnet."),
         loop_guard: bool | None = typer.Option(
             None, "--loop-guard/--no-loop-guard",
             help="Force loop detection on/off (default: the paper's choice, networks on static targets).",

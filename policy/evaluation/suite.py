@@ -15,7 +15,7 @@ from .runner import evaluate
 
 #: which paper row a policy's result sits beside, on the base case (static random targets)
 BASE_CASE_ROWS = {"ns": "NS", "drqn": "DRQN", "ssn": "SSN (PT)", "dualstream": "Random (PT)"}
-_CHECKPOINTED = ("dualstream", "ssn", "drqn")
+_CHECKPOINTED = ("dualstream", "ssn", "drqn", "searchnet")
 _TRUTH = ("oracle", "cu")  # replay plans; loop detection does not apply
 
 
