@@ -90,7 +90,8 @@ def _belief(cfg: GridConfig | None = None, prior: Any = None, loop_guard: bool |
     return BeliefPlanner(prior=prior)
 
 
-def _searchnet(cfg: GridConfig | None = None, checkpoint: Any = None, **_: Any) -> Policy:
+def _searchnet(cfg: GridConfig | None = None, checkpoint: Any = None, loop_guard: bool | None = None,
+               temperature: float | None = None, **_: Any) -> Policy:
     """The shipped search network for the field's setting when one exists (static random
     otherwise: the network runs on any field size and motion)."""
     from ..nn import shipped_checkpoint
@@ -102,7 +103,14 @@ def _searchnet(cfg: GridConfig | None = None, checkpoint: Any = None, **_: Any) 
             specific = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}_{cfg.width}x{cfg.height}")
             generic = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}")
             checkpoint = next((p for p in (specific, generic) if p.is_file()), checkpoint)
-    return load_searchnet_policy(checkpoint, cfg)
+    policy: Policy = load_searchnet_policy(checkpoint, cfg, temperature=temperature or 0.0)
+    if loop_guard is None:  # a greedy network can cycle where the belief stops changing: the
+        loop_guard = cfg is None or not cfg.moving  # paper's guard for static targets, as for dualstream
+    if loop_guard:
+        from ..loops import LoopGuard
+
+        return LoopGuard(policy)
+    return policy
 
 
 register_policy("oracle", _plans("pt"), "optimal PT with full knowledge of the targets (upper bound)")

@@ -28,13 +28,18 @@ def obs_tensors(planes: np.ndarray, positions: np.ndarray, valid: np.ndarray,
 class SearchNetPolicy(Policy):
     name = "searchnet"
 
-    def __init__(self, model: SearchNet, name: str = "searchnet") -> None:
+    def __init__(self, model: SearchNet, name: str = "searchnet", temperature: float = 0.0) -> None:
+        """temperature 0: greedy. > 0: sample from softmax(logits / temperature), seeded by
+        reset(); a near-greedy choice that cannot cycle forever where the belief stops changing."""
+        if temperature < 0:
+            raise ValueError(f"temperature must be >= 0 (got {temperature})")
         self.model = model.eval()
-        self.name = name
+        self.name, self.temperature = name, temperature
 
     def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
         self.cfg = cfg
         self.belief = BeliefState(cfg, n)
+        self.rng = np.random.default_rng([seed, 0x5EA5C4])
 
     @torch.inference_mode()
     def logits(self, obs: Observation) -> np.ndarray:
@@ -44,11 +49,15 @@ class SearchNetPolicy(Policy):
         return self.model(x, mask).numpy()
 
     def act(self, obs: Observation) -> np.ndarray:
-        a = self.logits(obs).argmax(axis=1)
+        z = self.logits(obs)
+        if self.temperature > 0:  # Gumbel-max: a sample from softmax(z / T)
+            z = z / self.temperature - np.log(-np.log(self.rng.random(z.shape)))
+        a = z.argmax(axis=1)
         return np.minimum(a, self.cfg.n_actions - 1)
 
 
-def load_searchnet_policy(path: str | Path, cfg: GridConfig | None = None, name: str = "searchnet") -> SearchNetPolicy:
+def load_searchnet_policy(path: str | Path, cfg: GridConfig | None = None, name: str = "searchnet",
+                          temperature: float = 0.0) -> SearchNetPolicy:
     from ..belief import BELIEF_CHANNELS
 
     model, _ = load_searchnet(path)
@@ -57,4 +66,4 @@ def load_searchnet_policy(path: str | Path, cfg: GridConfig | None = None, name:
 
         raise CheckpointError(f"{path}: trained on {model.cfg.in_channels} belief planes, this belief has "
                               f"{BELIEF_CHANNELS}")
-    return SearchNetPolicy(model, name)
+    return SearchNetPolicy(model, name, temperature)
