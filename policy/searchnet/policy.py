@@ -14,7 +14,7 @@ from sim.gridworld import Episodes, GridConfig
 from ..base import Observation, Policy
 from ..belief import BeliefState
 from .checkpoint import load_searchnet
-from .encode import action_mask, egocentric_np
+from .encode import egocentric_np
 from .model import SearchNet
 
 
@@ -22,7 +22,10 @@ def obs_tensors(planes: np.ndarray, positions: np.ndarray, valid: np.ndarray,
                 n_actions: int) -> tuple[torch.Tensor, torch.Tensor]:
     """(egocentric input, action mask) for a batch of belief planes."""
     x = torch.from_numpy(egocentric_np(np.asarray(planes, dtype=np.float32), positions))
-    return x, action_mask(torch.from_numpy(np.asarray(valid, dtype=bool)), n_actions)
+    valid = np.asarray(valid, dtype=bool)
+    if valid.shape[1] < n_actions:  # static worlds: no stay
+        valid = np.concatenate([valid, np.zeros((len(valid), n_actions - valid.shape[1]), bool)], axis=1)
+    return x, torch.from_numpy(valid)
 
 
 class SearchNetPolicy(Policy):
