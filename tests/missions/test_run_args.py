@@ -34,7 +34,7 @@ def test_bad_flight_arguments_are_refused_by_value(tmp_path: Path) -> None:
 
 
 def test_a_policy_that_cannot_serve_the_size_says_so_before_take_off(tmp_path: Path) -> None:
-    r = runner.invoke(app, ["run", *ORIGIN, "--width", "20", "--out", str(tmp_path / "o")])
+    r = runner.invoke(app, ["run", *ORIGIN, "--width", "20", "--policy", "dualstream", "--out", str(tmp_path / "o")])
     assert r.exit_code == 2 and "20 x 10" in _text(r.output) and "dualstream" in _text(r.output), r.output
 
 
