@@ -1,13 +1,11 @@
 """Search-network checkpoints: weights plus what is needed to trust and resume them (network
 config, grid config, training config, seed, git revision, stage, metrics, optimiser state),
-written atomically and read with torch.load(weights_only=True): a checkpoint is data, never
+written atomically with a SHA-256 of the weights and read with torch.load(weights_only=True): a checkpoint is data, never
 code, so a file from elsewhere cannot run anything when it is loaded."""
 
 from __future__ import annotations
 
 import io
-import pickle
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +13,7 @@ import torch
 
 from provenance import atomic_write_bytes, git_revision
 
-from ..nn.checkpoint import CheckpointError
+from ..nn.checkpoint import CheckpointError, read_torch_document, weights_digest
 from .config import SearchNetConfig
 from .model import SearchNet
 
@@ -26,6 +24,7 @@ def save_searchnet(path: str | Path, model: SearchNet, **state: Any) -> Path:
     """state: grid (dict), train (dict), seed, stage, metrics, optimizer, critic ... plain data only."""
     doc = {"format": FORMAT, "model_config": model.cfg.to_dict(), "state_dict": model.state_dict(),
            "git_revision": state.pop("git_revision", None) or git_revision(), **state}
+    doc["weights_sha256"] = weights_digest(doc["state_dict"])
     buf = io.BytesIO()
     torch.save(doc, buf)
     atomic_write_bytes(path, buf.getvalue())
@@ -33,20 +32,8 @@ def save_searchnet(path: str | Path, model: SearchNet, **state: Any) -> Path:
 
 
 def read_searchnet(path: str | Path) -> dict[str, Any]:
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: no such checkpoint file")
-    try:
-        doc = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError) as e:
-        raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") from e
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        found = doc.get("format") if isinstance(doc, dict) else None
-        raise CheckpointError(f"{path}: not a searchnet checkpoint of format {FORMAT!r} (found {found!r})")
-    for key in ("model_config", "state_dict"):
-        if key not in doc:
-            raise CheckpointError(f"{path}: missing {key!r}")
-    return doc
+    """The nn checkpoints' reader: weights only, format tag, keys and the weights' SHA-256."""
+    return read_torch_document(path, FORMAT, ("model_config", "state_dict"))
 
 
 def load_searchnet(path: str | Path) -> tuple[SearchNet, dict[str, Any]]:

@@ -20,9 +20,7 @@ def _saved(tmp_path: Path) -> Path:
     return save_checkpoint(tmp_path / "m.pt", build_model(cfg), cfg, seed=0)
 
 
-def test_flipped_weight_bytes_are_caught(tmp_path: Path) -> None:
-    path = _saved(tmp_path)
-    load_model(path)  # intact: loads
+def _flip_largest_tensor(path: Path) -> None:
     raw = bytearray(path.read_bytes())
     with zipfile.ZipFile(io.BytesIO(bytes(raw))) as z:
         info = max((i for i in z.infolist() if "/data/" in i.filename), key=lambda i: i.file_size)
@@ -30,8 +28,26 @@ def test_flipped_weight_bytes_are_caught(tmp_path: Path) -> None:
     for k in range(64):  # 64 bytes in the middle of the largest tensor, as the probe did
         raw[start + info.file_size // 2 + k] ^= 0x5A
     path.write_bytes(bytes(raw))
+
+
+def test_flipped_weight_bytes_are_caught(tmp_path: Path) -> None:
+    path = _saved(tmp_path)
+    load_model(path)  # intact: loads
+    _flip_largest_tensor(path)
     with pytest.raises(CheckpointError, match="SHA-256"):
         load_model(path)
+
+
+def test_flipped_bytes_in_a_shipped_searchnet_are_caught(tmp_path: Path) -> None:
+    from policy.nn import shipped_checkpoint
+    from policy.searchnet.checkpoint import load_searchnet
+
+    path = tmp_path / "searchnet.pt"
+    path.write_bytes(shipped_checkpoint("searchnet_static_random").read_bytes())
+    assert load_searchnet(path)[1]["weights_sha256"], "shipped with its checksum"
+    _flip_largest_tensor(path)
+    with pytest.raises(CheckpointError, match="SHA-256"):
+        load_searchnet(path)
 
 
 class _Payload:
