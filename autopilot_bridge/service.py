@@ -318,6 +318,10 @@ class PolicyService:
                 views=view[None], maps=self.pmap.policy_map(g.map_variant)[None],
                 positions=cell[None].astype(np.int64), valid=valid_moves(cell, g.width, g.height, g.n_actions)[None],
                 t=np.array([move]), active=np.array([True]),
+                # the position posterior over cells: belief-state policies (policy/belief) fold the
+                # view in as an expectation over it, as in the grid world's GPS evaluation
+                position_prob=(None if self.spec.visit_map == "hard"
+                               else self.pmap.current[None].astype(np.float32)),
             )
             self._expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])
