@@ -14,7 +14,7 @@ import typer
 
 from autopilot_bridge.abort import AbortAction
 
-DEFAULT_POLICIES = ["oracle", "cu", "ns", "frontier", "lawnmower", "random"]
+DEFAULT_POLICIES = ["oracle", "cu", "ns", "frontier", "lawnmower", "random", "belief"]
 
 
 def register(app: typer.Typer) -> None:
@@ -38,7 +38,7 @@ def register(app: typer.Typer) -> None:
         names = [p for p in DEFAULT_POLICIES if p in known_policies()]
         # the shipped networks; the DRQN (84 x 84 frames, most episodes run to t_e) takes minutes
         # on a CPU, so it is in results/table1_small.md and `uavsearch eval --policy drqn`
-        for net in ("dualstream", "ssn"):
+        for net in ("dualstream", "ssn", "searchnet"):
             if net in known_policies() and shipped_checkpoint(f"{net}_static_random").exists():
                 names.append(net)
         run_eval(names, GridConfig(), episodes, seed, out)
