@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import math
 import signal
 import time
@@ -18,22 +17,6 @@ from missions.commands.options import DIST, HEIGHT, MOTION, TARGETS, WIDTH, Dist
 class Physics(StrEnum):
     pybullet = "pybullet"
     kinematic = "kinematic"
-
-
-def _key(signing_key: str | None, passphrase: str | None) -> bytes | None:
-    if signing_key is not None and passphrase is not None:
-        raise typer.BadParameter("give a key or a passphrase, not both", param_hint="--signing-passphrase")
-    if passphrase is not None:  # MAVProxy's `signing key PASSPHRASE`: the key is its SHA-256
-        return hashlib.sha256(passphrase.encode()).digest()
-    if signing_key is None:
-        return None
-    try:
-        key = bytes.fromhex(signing_key)
-    except ValueError as e:
-        raise typer.BadParameter("must be 64 hex characters", param_hint="--signing-key") from e
-    if len(key) != 32:
-        raise typer.BadParameter("must be 64 hex characters (32 bytes)", param_hint="--signing-key")
-    return key
 
 
 def register(app: typer.Typer) -> None:
@@ -71,10 +54,6 @@ def register(app: typer.Typer) -> None:
             help="Send GCS telemetry to 14550+N instead of PX4's shared 14550 (one MAVProxy per vehicle)."),
         signing_key_file: Path | None = typer.Option(
             None, "--signing-key-file", help="Require MAVLink2 signing: a chmod-600 file with 64 hex chars or a passphrase."),
-        signing_key: str | None = typer.Option(
-            None, "--signing-key", help="64 hex chars (visible to other users in /proc: prefer --signing-key-file)."),
-        signing_passphrase: str | None = typer.Option(
-            None, "--signing-passphrase", help="Require signing with SHA-256(passphrase), as MAVProxy's `signing key`."),
         tlog: Path | None = typer.Option(None, "--tlog", help="Write a .tlog (one per instance: NAME-N.tlog)."),
         bind: str = typer.Option("0.0.0.0", "--bind", help="Local address the vehicle's ports listen on "
                                  "(127.0.0.1: this machine only)."),
@@ -90,13 +69,11 @@ def register(app: typer.Typer) -> None:
         if instance + count > 40:
             raise typer.BadParameter(f"instances {instance}..{instance + count - 1} pass 39: PX4's ports 14540+N "
                                      "would meet 14580+M", param_hint="--count")
-        key = _key(signing_key, signing_passphrase)
+        # keys come from a file with safe permissions only: argv is readable by every user in /proc
+        key: bytes | None = None
         if signing_key_file is not None:
             from missions.keys import KeyFileError, read_signing_key
 
-            if key is not None:
-                raise typer.BadParameter("give one of --signing-key-file, --signing-key, --signing-passphrase",
-                                         param_hint="--signing-key-file")
             try:
                 key = read_signing_key(signing_key_file)
             except KeyFileError as e:
@@ -150,8 +127,8 @@ def register(app: typer.Typer) -> None:
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
             typer.echo(f"    companion           uavsearch run --field {fpath}")
         if key is not None:
-            how = "`signing key PASSPHRASE`" if signing_passphrase else "the same 32-byte key"
-            typer.echo(f"MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: {how}).")
+            typer.echo("MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: `signing key` with "
+                       "the file's passphrase, or the same 32-byte key).")
 
         def terminate(_signum: int, _frame: object) -> None:  # SIGTERM stops as cleanly as Ctrl-C
             raise KeyboardInterrupt
