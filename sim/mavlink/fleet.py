@@ -10,7 +10,6 @@ Telemetry streams are each vehicle's own, paced as a lone vehicle paces them.
 from __future__ import annotations
 
 import logging
-import select
 import threading
 import time
 import traceback
@@ -18,12 +17,13 @@ from collections.abc import Sequence
 
 from sim.vehicle.fleet import KinematicFleet, QuadrotorFleet
 
+from .runner import BackgroundRunner, pace
 from .sitl import TICK_S, Sitl, SitlConfig
 
 log = logging.getLogger(__name__)
 
 
-class SitlFleet:
+class SitlFleet(BackgroundRunner):
     """Build with one SitlConfig per vehicle (same physics and speed-up), then `start()` or
     `run()`; `stop()` closes every vehicle."""
 
@@ -76,33 +76,16 @@ class SitlFleet:
                 if len(self.errors) > 100:
                     raise
             if self.speedup > 0:
-                while (lag := wall0 + self.t / self.speedup - time.monotonic()) > 0:
-                    ready, _, _ = select.select(socks, [], [], lag)
-                    for s in {self._owner[sock] for sock in ready}:
-                        s.vehicle.service()
+                pace(wall0, self.t, self.speedup, socks, self._serve)
 
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+    def _serve(self, ready: list) -> None:
+        for s in {self._owner[sock] for sock in ready}:
+            s.vehicle.service()
 
-    def start(self) -> SitlFleet:
-        self._thread = threading.Thread(target=self.run, name=f"sitl-fleet-{len(self)}", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-        self._close()
+    def _thread_name(self) -> str:
+        return f"sitl-fleet-{len(self)}"
 
     def _close(self) -> None:
         for s in self.sitls:
             s.stop()
         self.world.close()
-
-    def __enter__(self) -> SitlFleet:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()

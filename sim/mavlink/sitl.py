@@ -29,6 +29,7 @@ from sim.vehicle.gps import GpsConfig, GpsModel
 from sim.vehicle.model import FlightModel
 
 from .geofence import Geofence
+from .runner import BackgroundRunner, pace
 from .tlog import TlogWriter
 from .udp import UdpLink
 from .vehicle import MavlinkVehicle
@@ -122,7 +123,7 @@ def _or(value: int | None, default: int) -> int:
     return default if value is None else value
 
 
-class Sitl:
+class Sitl(BackgroundRunner):
     """Build with a config, then `start()` (background thread) or `run()` (foreground)."""
 
     def __init__(self, cfg: SitlConfig, model: FlightModel | None = None) -> None:
@@ -272,27 +273,13 @@ class Sitl:
                 if len(self.errors) > 100:
                     raise
             if self.cfg.speedup > 0:
-                # wait for the next tick, answering messages as they arrive rather than
-                # on the tick: command latency stays at the network's, not the tick's
-                socks = [link.sock for link in self.vehicle.links]
-                while (lag := wall0 + self.t / self.cfg.speedup - time.monotonic()) > 0:
-                    ready, _, _ = select.select(socks, [], [], lag)
-                    if ready:
-                        self.vehicle.service()
+                pace(wall0, self.t, self.cfg.speedup, [link.sock for link in v.links],
+                     lambda _ready: v.service())
 
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+    def _thread_name(self) -> str:
+        return f"sitl-{self.cfg.instance}"
 
-    def start(self) -> Sitl:
-        self._thread = threading.Thread(target=self.run, name=f"sitl-{self.cfg.instance}", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+    def _close(self) -> None:
         for link in self.vehicle.links:
             link.close()
         if self.tlog:
@@ -305,12 +292,6 @@ class Sitl:
             if pybullet.isConnected(self._scene):
                 pybullet.disconnect(self._scene)
             self._scene = None
-
-    def __enter__(self) -> Sitl:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
 
     def grid_world(self) -> BatchGridWorld:
         return BatchGridWorld(self.episode, self.cfg.seed)
