@@ -62,11 +62,18 @@ def register(app: typer.Typer) -> None:
                                                help="Send folds to this ray cluster (dataset on a shared path)."),
         ddp: int = typer.Option(0, "--ddp", min=0, help="DDP processes (GPUs) per fold; 0: off."),
         episodes: int = typer.Option(20_000, "--episodes", min=1, help="drqn: training episodes (the paper's 20k)."),
-        dagger_iterations: int = typer.Option(6, "--dagger-iterations", min=1, help="searchnet: DAgger iterations."),
+        dagger_iterations: int = typer.Option(6, "--dagger-iterations", min=0,
+                                              help="searchnet: DAgger iterations (0: PPO only, with --init)."),
         dagger_episodes: int = typer.Option(400, "--dagger-episodes", min=1,
                                             help="searchnet: student rollouts per DAgger iteration."),
         ppo_updates: int = typer.Option(20, "--ppo-updates", min=0, help="searchnet: PPO updates after DAgger."),
         ppo_episodes: int = typer.Option(128, "--ppo-episodes", min=1, help="searchnet: episodes per PPO update."),
+        init: Path | None = typer.Option(None, "--init", exists=True, dir_okay=False,
+                                         help="searchnet: fine-tune this checkpoint (DAgger with the student "
+                                              "driving from iteration 0, then PPO) instead of starting from scratch."),
+        beta0: float = typer.Option(1.0, "--dagger-beta0", min=0.0, max=1.0,
+                                    help="searchnet: teacher share of the executed moves in the first "
+                                         "student-driven DAgger iteration (halved each iteration)."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -79,7 +86,8 @@ def register(app: typer.Typer) -> None:
             return
         if model is Model.searchnet:
             _train_searchnet(out, grid, seed, resume, threads, workers, ray_address, dagger_iterations,
-                             dagger_episodes, ppo_updates, ppo_episodes, epochs if epochs != 50 else None)
+                             dagger_episodes, ppo_updates, ppo_episodes, epochs if epochs != 50 else None,
+                             init, beta0)
             return
         if dataset is None:
             raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
@@ -105,7 +113,7 @@ def register(app: typer.Typer) -> None:
 
 def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threads: int | None, workers: int,
                      ray_address: str | None, iterations: int, dagger_episodes: int, ppo_updates: int,
-                     ppo_episodes: int, epochs: int | None) -> None:
+                     ppo_episodes: int, epochs: int | None, init: Path | None = None, beta0: float = 1.0) -> None:
     """DAgger on the belief planner, then PPO; no dataset (the teacher labels the student's own states)."""
     import torch
 
@@ -115,9 +123,13 @@ def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threa
     from policy.searchnet.train import SearchTrainConfig, train_searchnet
 
     torch.set_num_threads(threads or 1)
-    dc = DaggerConfig(iterations=iterations, episodes=dagger_episodes, chunks=max(workers, 1),
-                      **({"epochs": epochs} if epochs else {}))
-    tc = SearchTrainConfig(dagger=dc, ppo=PpoConfig(episodes=ppo_episodes), ppo_updates=ppo_updates, seed=seed)
+    try:
+        dc = DaggerConfig(iterations=iterations, episodes=dagger_episodes, chunks=max(workers, 1), beta0=beta0,
+                          **({"epochs": epochs} if epochs else {}))
+        tc = SearchTrainConfig(dagger=dc, ppo=PpoConfig(episodes=ppo_episodes), ppo_updates=ppo_updates, seed=seed,
+                               init=None if init is None else str(init))
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--dagger-iterations") from e
     try:
         path = train_searchnet(grid, out, tc, resume=resume, workers=workers, ray_address=ray_address,
                                log=typer.echo)

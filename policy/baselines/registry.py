@@ -66,10 +66,18 @@ def _simple(module: str, cls_name: str) -> Factory:
 
 
 def _network(default: str) -> Factory:
+    """The shipped network for the field's setting (<model>_<motion>_<distribution>.pt, e.g. the
+    moving-target dual-stream rows of Table I) when one is shipped, else `default`."""
+    model = default.split("_")[0]
+
     def make(cfg: GridConfig | None = None, checkpoint: Any = None, **kw: Any) -> Policy:
         from ..nn import load_policy, shipped_checkpoint
 
-        return load_policy(checkpoint or shipped_checkpoint(default), cfg=cfg, **kw)
+        if checkpoint is None:
+            checkpoint = shipped_checkpoint(default)
+            if cfg is not None and shipped_checkpoint(f"{model}_{cfg.motion}_{cfg.distribution}").is_file():
+                checkpoint = shipped_checkpoint(f"{model}_{cfg.motion}_{cfg.distribution}")
+        return load_policy(checkpoint, cfg=cfg, **kw)
 
     return make
 

@@ -42,8 +42,8 @@ class DaggerConfig:
     max_steps_factor: float = 1.5
 
     def __post_init__(self) -> None:
-        if self.iterations < 1 or self.episodes < 1 or self.chunks < 1 or self.epochs < 1 or self.batch < 1:
-            raise ValueError(f"DaggerConfig needs positive counts (got {self})")
+        if self.iterations < 0 or self.episodes < 1 or self.chunks < 1 or self.epochs < 1 or self.batch < 1:
+            raise ValueError(f"DaggerConfig needs positive counts, iterations >= 0 (got {self})")
         if not (0.0 <= self.beta0 <= 1.0 and 0.0 <= self.beta_decay <= 1.0):
             raise ValueError(f"beta0 and beta_decay must be in [0, 1] (got {self.beta0}, {self.beta_decay})")
 
@@ -101,14 +101,18 @@ def fit(model: SearchNet, opt: torch.optim.Optimizer, data: dict[str, np.ndarray
 def run_dagger(model: SearchNet, grid: GridConfig, dc: DaggerConfig, teacher_prior: Any = None,
                start: int = 0, data: dict[str, np.ndarray] | None = None, opt: torch.optim.Optimizer | None = None,
                workers: int = 1, ray_address: str | None = None,
-               on_iteration: Callable[[int, dict, dict[str, np.ndarray]], None] | None = None) -> dict[str, np.ndarray]:
+               on_iteration: Callable[[int, dict, dict[str, np.ndarray]], None] | None = None,
+               student_first: bool = False) -> dict[str, np.ndarray]:
     """Iterations start .. dc.iterations - 1; `data` is the aggregate so far (resume). on_iteration(i,
-    metrics, data) is called after each (the trainer checkpoints there). Returns the aggregate."""
+    metrics, data) is called after each (the trainer checkpoints there). Returns the aggregate.
+    Iteration 0 is behaviour cloning (the teacher drives) unless student_first: a student that is
+    already trained (fine-tuning) drives from the start, mixed with the teacher at beta0."""
     opt = opt or torch.optim.Adam(model.parameters(), lr=dc.lr)
     rng = np.random.default_rng([dc.seed_base, 0xF17])
     for i in range(start, dc.iterations):
-        new = gather(rollout_tasks(dc, grid, i, None if i == 0 else model, teacher_prior), workers, ray_address)
-        stats = {"iteration": i, "beta": dc.beta(i) if i else 1.0, "rollout_moves": float(new["moves"].mean()),
+        drive = model if i or student_first else None
+        new = gather(rollout_tasks(dc, grid, i, drive, teacher_prior), workers, ray_address)
+        stats = {"iteration": i, "beta": dc.beta(i) if drive is not None else 1.0, "rollout_moves": float(new["moves"].mean()),
                  "rollout_success": float(new["success"].mean()), "new_states": int(len(new["labels"]))}
         new = {k: v for k, v in new.items() if k not in ("moves", "success")}
         data = new if data is None else merge([data, new])

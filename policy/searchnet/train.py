@@ -28,7 +28,7 @@ from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
 from ..base import observe
 from ..belief import BELIEF_CHANNELS
 from ..nn.checkpoint import CheckpointError
-from .checkpoint import read_searchnet, save_searchnet
+from .checkpoint import load_searchnet, read_searchnet, save_searchnet
 from .config import SearchNetConfig
 from .dagger import DaggerConfig, run_dagger
 from .model import SearchNet
@@ -54,10 +54,15 @@ class SearchTrainConfig:
     val_episodes: int = 400
     #: validate every this many PPO updates
     val_every: int = 2
+    #: start the actor from this searchnet checkpoint (fine-tuning: more DAgger, PPO) instead of
+    #: random weights; its validation is the mark the run must beat to replace searchnet.pt
+    init: str | None = None
 
     def __post_init__(self) -> None:
         if self.ppo_updates < 0 or self.val_episodes < 1 or self.val_every < 1:
             raise ValueError(f"SearchTrainConfig: ppo_updates >= 0, val_episodes >= 1, val_every >= 1 (got {self})")
+        if self.dagger.iterations == 0 and self.init is None:
+            raise ValueError("SearchTrainConfig: 0 DAgger iterations only when fine-tuning (give init)")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -94,6 +99,12 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
     actor = SearchNet(tc.net())
     critic = SearchNet(SearchNetConfig(BELIEF_CHANNELS, privileged_channels=1, conv1=tc.conv1, conv2=tc.conv2,
                                        hidden=tc.hidden))
+    if tc.init is not None:
+        init_net, _ = load_searchnet(tc.init)
+        if init_net.cfg != actor.cfg:
+            raise CheckpointError(f"{tc.init}: network {init_net.cfg} differs from this run's {actor.cfg} "
+                                  "(give the same --conv/--hidden sizes)")
+        actor.load_state_dict(init_net.state_dict())
     opt_d = torch.optim.Adam(actor.parameters(), lr=tc.dagger.lr)
     opt_a = torch.optim.Adam(actor.parameters(), lr=tc.ppo.lr)
     opt_c = torch.optim.Adam(critic.parameters(), lr=tc.ppo.critic_lr)
@@ -102,7 +113,8 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
     data = None
     if state_path.exists():
         doc = read_searchnet(state_path)
-        if doc.get("grid") != grid.to_dict() or doc.get("train") != tc.to_dict():
+        started = {"init": None, **(doc.get("train") or {})}  # runs from before `init` existed
+        if doc.get("grid") != grid.to_dict() or started != tc.to_dict():
             raise CheckpointError(f"{state_path}: was started with another grid or training config; "
                                   f"use the same options to resume (found {doc.get('grid')}, {doc.get('train')})")
         actor.load_state_dict(doc["state_dict"])
@@ -136,6 +148,12 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
                            metrics=dict(metrics), git_revision=st["git_revision"],
                            train_seconds=time.monotonic() - t0)
 
+    if st["stage"] == "dagger" and st["next"] == 0 and tc.init is not None and st["best"] is None:
+        consider({"stage": "init", "init": tc.init})  # the mark to beat
+        save_state()
+    if st["stage"] == "dagger" and tc.dagger.iterations == 0:
+        st["stage"], st["next"] = "ppo", 0
+        save_state()
     if st["stage"] == "dagger":
         def on_iteration(i: int, stats: dict, agg: dict[str, np.ndarray]) -> None:
             if i == tc.dagger.iterations - 1:
@@ -150,7 +168,7 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
                                             for k, v in stats.items()))
 
         run_dagger(actor, grid, tc.dagger, prior, start=st["next"], data=data, opt=opt_d, workers=workers,
-                   ray_address=ray_address, on_iteration=on_iteration)
+                   ray_address=ray_address, on_iteration=on_iteration, student_first=tc.init is not None)
         st["stage"], st["next"] = "ppo", 0
         save_state()
     if st["stage"] == "ppo" and tc.ppo_updates:

@@ -54,3 +54,29 @@ def test_a_foreign_file_is_a_clear_error(tmp_path) -> None:
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(CheckpointError, match="not a readable"):
         read_searchnet(bad)
+
+
+@pytest.mark.slow
+def test_fine_tune_from_a_checkpoint(tmp_path) -> None:
+    """--init: the given network is validated first (the mark to beat) and drives DAgger from
+    iteration 0; without --init, 0 DAgger iterations is refused with the option named."""
+    from policy.belief import BELIEF_CHANNELS
+    from policy.searchnet import SearchNet, SearchNetConfig
+    from policy.searchnet.checkpoint import save_searchnet
+
+    torch.manual_seed(1)
+    start = save_searchnet(tmp_path / "start.pt", SearchNet(SearchNetConfig(BELIEF_CHANNELS)))
+    tiny = ["--dagger-episodes", "12", "--ppo-updates", "0", "--width", "5", "--height", "5", "--targets", "2"]
+    cmd = [sys.executable, "-m", "missions", "train", "--model", "searchnet", *tiny]
+    r = subprocess.run([*cmd, "--out", str(tmp_path / "ft"), "--init", str(start), "--dagger-iterations", "1",
+                        "--dagger-beta0", "0.5"], capture_output=True, text=True, timeout=240)
+    assert r.returncode == 0, r.stderr
+    state = read_searchnet(tmp_path / "ft" / "state.pt")
+    assert state["train"]["init"] == str(start) and state["stage"] == "done"
+    (it,) = state["history"]
+    assert it["beta"] == 0.5  # the student drove half the moves of the first iteration
+    best = read_searchnet(tmp_path / "ft" / "searchnet.pt")
+    assert best["metrics"]["val_moves"] <= state["best"]["val_moves"] + 1e-9
+    bad = subprocess.run([*cmd, "--out", str(tmp_path / "bad"), "--dagger-iterations", "0"],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode != 0 and "init" in bad.stdout + bad.stderr
