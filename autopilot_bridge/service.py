@@ -49,6 +49,15 @@ FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
 #: those would slip the schedule at random and break reproducibility; a 2 m leg is over in ~2 s
 SETTLED_M = 0.6
 SETTLED_SPEED = 1.0
+#: the settle check reads the latest LOCAL_POSITION_NED (10 Hz) stamped this long before t:
+#: 0.5 s holds 5 samples, so a 20 %-lossy link leaves none 0.03 % of the time (0.25 s: 1-4 %)
+SETTLED_LOOKBACK_S = 0.5
+#: LOCAL_POSITION_NED samples kept (10 Hz of simulated time). A frame stamped t can arrive
+#: long after t in simulated time: wall seconds of lossy resends times the speed-up (20 s of
+#: FRAME_DEADLINE_S at 50x, where the vehicle starts to thin its streams, is 1000 s, 10k
+#: samples). 400 (40 s) was shorter than one lossy frame at 10x: the samples around t were
+#: gone when the frame came, the leg never "settled", and a 64-move search died.
+LOCAL_KEEP = 10_000
 VISIT_MAPS = ("probabilistic", "hard")
 KEEP_FRAMES = 7
 
@@ -132,7 +141,7 @@ class PolicyService:
         self._last_gps_t = -1.0
         self._fixes: deque = deque()  # (t, ned, eph, epv) received, not yet fused
         self._fix_lock = threading.Lock()
-        self._local: deque = deque(maxlen=400)  # (t, n, e, vn, ve): the autopilot's estimate
+        self._local: deque = deque(maxlen=LOCAL_KEEP)  # (t, n, e, vn, ve): the autopilot's estimate
         self.sim_time_s = 0.0  # the latest simulated time any telemetry was stamped with
         self.t_ref: float | None = None  # the schedule's origin on the simulated clock
         self._first_fix_t: float | None = None
@@ -177,12 +186,16 @@ class PolicyService:
             self.estimator.update(ft, ned, eph, epv)
 
     def _settled_at(self, t: float, local_ne: np.ndarray) -> bool:
-        """Settled on the setpoint at simulated time t, by the autopilot's telemetry stamped
-        within a few samples before t (deterministic given the trajectory)."""
-        near = [x for x in list(self._local) if t - 0.25 <= x[0] <= t + 1e-6]
-        if not near:
+        """Settled on the setpoint at simulated time t, by the autopilot's latest telemetry
+        stamped up to t (deterministic given the trajectory, unless the link lost it)."""
+        sample = None
+        for x in reversed(list(self._local)):  # newest first: t is usually recent
+            if x[0] <= t + 1e-6:
+                sample = x if x[0] >= t - SETTLED_LOOKBACK_S else None
+                break
+        if sample is None:
             return False
-        _, n, e, vn, ve = near[-1]
+        _, n, e, vn, ve = sample
         near_m = max(self.spec.arrive_m, SETTLED_M)
         return bool(np.hypot(n - local_ne[0], e - local_ne[1]) < near_m and np.hypot(vn, ve) < SETTLED_SPEED)
 

@@ -13,8 +13,9 @@ M = mavlink
 STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT
 STATUSTEXT_KEEP = 200  # texts kept in the vehicle's counters (a history, not a leak)
 MAX_PENDING_FRAMES = 2  # frame requests queued beyond this are answered by the frames already queued
-#: a frame asked for again within this many wall-clock seconds, the vehicle not having moved
-#: more than FRAME_REUSE_M, is the same picture: resent as is so the receiver can fill its gaps
+#: a frame asked for again (untimed) within this many wall-clock seconds, the vehicle not having
+#: moved more than FRAME_REUSE_M, is the same picture: resent as is so the receiver can fill its
+#: gaps. A timed capture asked for again is always the picture of its time (see _stream).
 FRAME_REUSE_S = 3.0
 FRAME_REUSE_M = 0.3
 #: telemetry streams run at most this many times their rate in wall-clock time
@@ -54,7 +55,12 @@ class Streams:
             due = self._frame_times.pop(0)
             # a capture asked for again (its frame lost on the way) gets the same stamped
             # picture, so the receiver can fill its gaps; a new time gets a new picture
-            self._fresh_frame = self._fresh_frame or self._frame_cache_t < due - 1e-6
+            fresh = self._frame_cache_t < due - 1e-6
+            self._fresh_frame = self._fresh_frame or fresh
+            # asked again for a time the cached picture already answers: that picture, however
+            # long ago on the wall clock (a 20 %-lossy link takes several asks of ~2.5 s each; a new
+            # picture every 3 s threw away the chunks the receiver had, and a frame took 16 s)
+            self._resend_timed = self._resend_timed or not fresh
             self.queue_frame()
             if self.lockstep and self.camera is not None:  # the companion decides on this frame
                 self.hold_for_companion, self.hold_wall_t = True, self.clock()
@@ -96,8 +102,9 @@ class Streams:
         s = self.model.state
         now, pos = self.clock(), s.position_ned.copy()
         cached = self._frame_cache
-        if (self._pending_frames and not self._fresh_frame and cached is not None and now - cached[0] <= FRAME_REUSE_S
-                and np.linalg.norm(pos - cached[1]) <= FRAME_REUSE_M):
+        if (self._pending_frames and not self._fresh_frame and cached is not None
+                and (self._resend_timed or (now - cached[0] <= FRAME_REUSE_S
+                                            and np.linalg.norm(pos - cached[1]) <= FRAME_REUSE_M))):
             data, (h, w) = cached[2], cached[3]  # the same picture, with its own capture time
         else:
             self._fresh_frame = False
@@ -107,6 +114,7 @@ class Streams:
             self._frame_cache = (now, pos, data, (h, w))
         for m in png_messages(self.mav, data, w, h):
             self.send(m)
+        self._resend_timed = False
         self.counters.frames_sent += 1
         self._pending_frames = max(0, self._pending_frames - 1)
         rate = self.params["UAVS_CAM_RATE"]

@@ -85,6 +85,7 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         self._pending_frames = 0
         self._frame_times: list[float] = []  # simulated times of frames asked for ahead
         self._fresh_frame = False  # the next frame must be captured anew (a timed capture)
+        self._resend_timed = False  # the next frame answers a timed capture asked for again
         self._frame_cache_t = -1.0  # simulated time the cached frame was captured at
         self.lockstep = False  # hold time at a companion's decision points (SitlConfig)
         self.hold_for_companion = False

@@ -185,3 +185,36 @@ def test_a_search_completes_through_20_percent_loss_duplication_and_reordering()
     assert not r["armed_at_end"] and r["sitl_errors"] == 0
     assert r["down"]["lost"] > 50 and r["up"]["lost"] > 5, "the radio really was bad"
     assert r["link"]["command_retries"] > 0 and r["link"]["rx_errors"] == 0
+
+
+def test_the_settle_check_reads_telemetry_from_long_ago_in_simulated_time() -> None:
+    """Through a 20 %-lossy link a frame stamped t arrives seconds of wall time later, which at
+    a speed-up is a minute of simulated time: the settle check at t must still find the
+    vehicle's telemetry of t. It kept 400 samples (40 s), found none, and slipped the leg until
+    'no settled arrival' ended a 64-move search."""
+    from autopilot_bridge.service import PolicyService, SearchSpec
+    from policy.nn import load_policy
+    from sim.gridworld import GridConfig
+    from sim.mavlink.faultproxy import FaultProxy
+
+    faults = LinkFaults(loss=0.2, duplicate=0.05, reorder=0.05, delay_ms=(0.0, 5.0), reorder_ms=20)
+    vport, cport = _free_port(), _free_port()
+    grid = GridConfig()
+    with FaultProxy(vport, cport, faults, seed=3) as proxy:
+        sitl = Sitl(SitlConfig(instance=29, speedup=40.0, physics="kinematic", camera=False, gcs_link=False,
+                               api_local_port=vport, api_remote_port=proxy.vehicle_side_port, grid=grid)).start()
+        link = VehicleLink(f"udpin:127.0.0.1:{cport}")
+        service = PolicyService(link, load_policy(None, cfg=grid), SearchSpec(origin=sitl.field_origin, grid=grid))
+        try:
+            service.take_off()
+            t_hover = service.t_ref + 2.0
+            hold = service._setpoint[:2].copy()
+            service.wait_sim_time(t_hover + 70.0, timeout=30)
+            assert service._settled_at(t_hover, hold), "hovering on its setpoint 70 simulated s ago"
+            assert not service._settled_at(t_hover, hold + 3.0), "3 m off is not settled"
+            assert proxy.down.counts.lost > 20
+        finally:
+            service.land()
+            link.close()
+            sitl.stop()
+    assert not sitl.model.state.armed

@@ -194,3 +194,28 @@ def test_long_statustext_goes_out_in_chunks(sitl_factory) -> None:
         assert "".join(parts[k][1] for k in range(3)) == text
     finally:
         c.close()
+
+
+def test_a_timed_capture_asked_again_later_is_the_same_picture(lossy_sitl) -> None:
+    """A lossy link needs several asks for one frame, each ~2.5 s apart (command resends plus
+    the wait): the vehicle must resend the picture of the asked time however late the ask
+    comes, so the receiver can fill its gaps. It used to render a new picture after 3 wall
+    seconds, which threw the gathered chunks away (one frame took 16 s, and a 64-move search
+    through 20 % loss failed)."""
+    from autopilot_bridge.images import FrameRequester
+    from autopilot_bridge.link import VehicleLink
+    from sim.mavlink.streams import FRAME_REUSE_S
+
+    faults = LinkFaults(duplicate=0.05, reorder=0.05, delay_ms=(0.0, 2.0), reorder_ms=10)
+    sitl, proxy, port = lossy_sitl(faults, seed=5, physics="kinematic", camera=True, gcs_link=False)
+    with VehicleLink(f"udpin:127.0.0.1:{port}") as link:
+        link.wait_heartbeat()
+        at = sitl.t + 0.5
+        frame, t1 = FrameRequester(link).capture(at, timeout=3.0, tries=3)
+        assert frame is not None and t1 is not None and t1 >= at
+        time.sleep(FRAME_REUSE_S + 0.5)
+        again, t2 = FrameRequester(link).capture(at, timeout=3.0, tries=3)  # a fresh assembler: the wire's answer
+        assert again is not None and t2 == t1, f"a new picture ({t2}) instead of the one of {t1}"
+        assert np.array_equal(again, frame)
+        assert sitl.t > t1 + FRAME_REUSE_S, "simulated time ran on meanwhile"
+    assert proxy.down.counts.duplicated + proxy.down.counts.reordered > 0
