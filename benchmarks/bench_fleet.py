@@ -5,15 +5,20 @@
   per vehicle, each with its own physics world), as `--count N` ran before;
 - the fleet's physics alone (no MAVLink endpoints).
 Every vehicle takes off to 3.5 m and hovers, streaming its default telemetry (to ports nobody
-reads). Real-time factor = simulated s / CPU s of this process at speed-up 0. Run:
-`PYTHONPATH=. python benchmarks/bench_fleet.py [--seconds 4]`."""
+reads). Real-time factor = simulated s / CPU s of the measuring process at speed-up 0, each
+measurement in a fresh process. `--baseline DIR` also measures the fleet of an older checkout
+(e.g. `git worktree add /tmp/base <rev>`) in the same interleaved rounds. Run:
+`PYTHONPATH=. python benchmarks/bench_fleet.py [--seconds 4] [--baseline DIR]`."""
 
 from __future__ import annotations
 
 import argparse
 import os
 import socket
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -25,16 +30,26 @@ from sim.vehicle.fleet import KinematicFleet, QuadrotorFleet
 _clock = time.process_time
 
 
-def _port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def _ports(k: int) -> list[int]:
+    """k distinct free ports: every probe socket stays open until all are chosen (a port
+    probed and closed at once can be handed out again, and a vehicle then fails to bind)."""
+    socks = []
+    try:
+        for _ in range(k):
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            socks.append(s)
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
 
 
 def _cfgs(n: int, physics: str) -> list[SitlConfig]:
+    ports = iter(_ports(4 * n))
     return [SitlConfig(instance=i % 40, system_id=i + 1, speedup=0, physics=physics, camera=False,
-                       api_local_port=_port(), api_remote_port=_port(), gcs_local_port=_port(),
-                       gcs_remote_port=_port()) for i in range(n)]
+                       api_local_port=next(ports), api_remote_port=next(ports), gcs_local_port=next(ports),
+                       gcs_remote_port=next(ports)) for i in range(n)]
 
 
 def _take_off(sitls: list[Sitl]) -> None:
@@ -86,23 +101,56 @@ def physics_only(n: int, physics: str, seconds: float) -> float:
     return seconds / spent
 
 
+RUNS = {"fleet": fleet, "separate": separate, "physics": physics_only}
+
+
+def _in_process(name: str, n: int, physics: str, seconds: float, baseline: Path | None) -> float:
+    """One measurement in a fresh process, importing `sim` from this checkout or from `baseline`
+    (an older checkout: the same benchmark code measures both, side by side)."""
+    env = dict(os.environ)
+    root = Path(__file__).resolve().parent.parent if baseline is None else baseline
+    env["PYTHONPATH"] = str(root)
+    out = subprocess.run([sys.executable, __file__, "--one", name, str(n), physics, str(seconds)], env=env,
+                         capture_output=True, text=True, check=True).stdout
+    return float(out.strip().splitlines()[-1])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=4.0, help="simulated seconds per measurement")
     ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds; the best of each is kept")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="a checkout of an older revision: its fleet is measured in the same rounds")
+    ap.add_argument("--one", nargs=4, metavar=("RUN", "N", "PHYSICS", "SECONDS"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.one:
+        name, n, physics, sec = args.one
+        print(RUNS[name](int(n), physics, float(sec)))
+        return
+    if args.baseline is not None and not (args.baseline / "sim" / "mavlink").is_dir():
+        raise SystemExit(f"--baseline {args.baseline}: not a checkout of this project (no sim/mavlink)")
     s = args.seconds
-    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; best of {args.rounds} interleaved "
-          f"rounds of {s:.0f} simulated s; real-time factors (goal >= 10x with MAVLink)")
-    print(f"{'vehicles':<22}{'fleet':>10}{'separate':>10}{'fleet/sep':>11}{'physics only':>14}")
+    loads = [os.getloadavg()[0]]
+    print(f"load average {loads[0]:.2f} on {os.cpu_count()} cores; best of {args.rounds} interleaved "
+          f"rounds of {s:.0f} simulated s, each in a fresh process; real-time factors by CPU time "
+          "(goal >= 10x with MAVLink)")
+    head = f"{'vehicles':<22}{'fleet':>10}{'separate':>10}{'fleet/sep':>11}{'physics only':>14}"
+    print(head + (f"{'baseline fleet':>16}{'fleet/base':>12}" if args.baseline else ""))
     for n, physics in [(16, "pybullet"), (100, "kinematic")]:
-        runs = {"fleet": fleet, "separate": separate, "physics": physics_only}
-        best = dict.fromkeys(runs, 0.0)
+        jobs = [(name, None) for name in RUNS] + ([("fleet", args.baseline)] if args.baseline else [])
+        best = dict.fromkeys(jobs, 0.0)
         for _ in range(args.rounds):
-            for name, run in runs.items():
-                best[name] = max(best[name], run(n, physics, s))
-        print(f"{f'{n} {physics}':<22}{best['fleet']:>9.1f}x{best['separate']:>9.1f}x"
-              f"{best['fleet'] / best['separate']:>10.2f}x{best['physics']:>13.1f}x")
+            for name, base in jobs:
+                best[name, base] = max(best[name, base], _in_process(name, n, physics, s, base))
+                loads.append(os.getloadavg()[0])
+        f, sep, ph = best["fleet", None], best["separate", None], best["physics", None]
+        line = f"{f'{n} {physics}':<22}{f:>9.1f}x{sep:>9.1f}x{f / sep:>10.2f}x{ph:>13.1f}x"
+        if args.baseline:
+            b = best["fleet", args.baseline]
+            line += f"{b:>15.1f}x{f / b:>11.2f}x"
+        print(line, flush=True)
+    print(f"load average during the run: {min(loads):.1f}-{max(loads):.1f}"
+          + (" (a loaded machine: CPU-time rates are noisy, compare the columns of one run)" if max(loads) > 2 else ""))
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ Telemetry streams are each vehicle's own, paced as a lone vehicle paces them.
 from __future__ import annotations
 
 import logging
+import select
 import threading
 import time
 import traceback
@@ -47,6 +48,10 @@ class SitlFleet(BackgroundRunner):
             self._close()
             raise
         self._owner = {link.sock: s for s in self.sitls for link in s.vehicle.links}
+        self._owner_fd = {sock.fileno(): s for sock, s in self._owner.items()}
+        self._poller = select.epoll() if hasattr(select, "epoll") else select.poll()
+        for fd in self._owner_fd:
+            self._poller.register(fd, select.POLLIN)
         self.t = 0.0
         self.errors: list[str] = []
         self._stop = threading.Event()
@@ -61,8 +66,11 @@ class SitlFleet(BackgroundRunner):
     def step(self) -> None:
         self.world.step(TICK_S)
         self.t += TICK_S
+        # one poll over every vehicle's sockets, not two failing recvfrom calls per vehicle
+        for s in {self._owner_fd[fd] for fd, _ in self._poller.poll(0)}:
+            s.vehicle.service()
         for s in self.sitls:
-            s.tick(self.t)
+            s.tick(self.t, serve=False)
 
     def run(self, duration: float | None = None) -> None:
         wall0 = time.monotonic()
@@ -86,6 +94,8 @@ class SitlFleet(BackgroundRunner):
         return f"sitl-fleet-{len(self)}"
 
     def _close(self) -> None:
+        if hasattr(self, "_poller") and hasattr(self._poller, "close"):
+            self._poller.close()
         for s in self.sitls:
             s.stop()
         self.world.close()

@@ -127,11 +127,18 @@ class Flying:
     def _fence_breach(self) -> bool:
         """Hold inside the fence when the vehicle is outside it, or about to leave it under
         velocity control (targets are checked before they are flown; velocities cannot be)."""
-        fence, p = self.fence(), self.estimate()
-        ahead = p + self.model.state.velocity_ned * FENCE_LOOKAHEAD_S if self._velocity_control else p
-        if fence.allows(p) and fence.allows(ahead):
+        p = self.estimate()
+        # every tick of every vehicle: the fence's test (Geofence.allows) in plain floats
+        h, v = self.params["GF_MAX_HOR_DIST"], self.params["GF_MAX_VER_DIST"]
+        x, y, z = p.tolist()
+        inside = math.hypot(x, y) <= h and -z <= v
+        if inside and self._velocity_control:
+            x, y, z = (p + self.model.state.velocity_ned * FENCE_LOOKAHEAD_S).tolist()
+            inside = math.hypot(x, y) <= h and -z <= v
+        if inside:
             self._fence_hold = False
             return False
+        fence = self.fence()
         if self._fence_hold and not self._velocity_control:
             return True  # already on the way back in
         self._fence_hold = True

@@ -40,17 +40,8 @@ class Streams:
             self.send(self.mav.statustext_encode(severity, chunk, self._statustext_id, seq))
 
     def _stream(self) -> None:
-        now = self.clock()
-        for msg_id, hz in self.rates.items():
-            if hz <= 0 or self.t + 1e-9 < self._next_due.get(msg_id, 0.0):
-                continue
-            # due in simulated time; but never more than MAX_STREAM_SPEEDUP x the rate in wall time,
-            # so a simulation racing ahead (speedup 0) cannot flood a client's receive buffer
-            if now < self._next_wall.get(msg_id, 0.0):
-                continue
-            self._next_due[msg_id] = self.t + 1.0 / hz
-            self._next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
-            self.send_message(msg_id)
+        if self.t + 1e-9 >= self._stream_next:  # most ticks nothing is due: one comparison
+            self._send_due_streams()
         if self._frame_times and self.t + 1e-9 >= self._frame_times[0]:
             due = self._frame_times.pop(0)
             # a capture asked for again (its frame lost on the way) gets the same stamped
@@ -67,6 +58,28 @@ class Streams:
         if self._pending_frames or (self.params["UAVS_CAM_RATE"] > 0 and self.t >= self._next_frame_t):
             self._send_frame()
 
+    def _send_due_streams(self) -> None:
+        t, now, snap, soonest = self.t, self.clock(), None, float("inf")
+        for msg_id, hz in self.rates.items():
+            if hz <= 0:
+                continue
+            due = self._next_due.get(msg_id, 0.0)
+            if t + 1e-9 < due:
+                soonest = min(soonest, due)
+                continue
+            # due in simulated time; but never more than MAX_STREAM_SPEEDUP x the rate in wall time,
+            # so a simulation racing ahead (speedup 0) cannot flood a client's receive buffer
+            if now < self._next_wall.get(msg_id, 0.0):
+                soonest = t  # held back by the wall clock: look again next tick
+                continue
+            self._next_due[msg_id] = due = t + 1.0 / hz
+            soonest = min(soonest, due)
+            self._next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
+            if snap is None:  # one snapshot for every message of this tick
+                snap = self.snapshot()
+            self.send_message(msg_id, snap)
+        self._stream_next = soonest
+
     def capture_at(self, time_s: float) -> None:
         """Capture a frame on the first tick at or after simulated time `time_s` (at once if it
         has passed): a companion that decides on simulated time asks for its frames ahead."""
@@ -77,8 +90,9 @@ class Streams:
         return Snapshot(self.t, self.model.state, self.estimate(), self.home, self.fix, self.mode, self.sysid,
                         fence_breached=self._fence_hold, battery_ok="battery" not in self.failures)
 
-    def send_message(self, msg_id: int) -> bool:
-        """Send one message now (stream tick or REQUEST_MESSAGE); False if there is none to send."""
+    def send_message(self, msg_id: int, snap: Snapshot | None = None) -> bool:
+        """Send one message now (stream tick or REQUEST_MESSAGE); False if there is none to send.
+        `snap`: this tick's snapshot, when the caller has one."""
         if msg_id == M.MAVLINK_MSG_ID_MISSION_CURRENT:
             self.send_mission_current()
             return True
@@ -86,7 +100,7 @@ class Streams:
             self.queue_frame()  # a camera frame goes out on the next tick
             return True
         build = BUILDERS.get(msg_id)
-        msg = build(self.mav, self.snapshot()) if build is not None else None
+        msg = build(self.mav, snap or self.snapshot()) if build is not None else None
         if msg is None:
             return False
         self.send(msg)

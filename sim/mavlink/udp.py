@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from . import wire
+
 
 @dataclass
 class LinkStats:
@@ -80,10 +82,18 @@ class UdpLink:
             # RADIO_STATUS may come unsigned from radios (the MAVLink signing spec's exception)
             self.mav.signing.allow_unsigned_callback = lambda _m, msg_id: msg_id == mavlink.MAVLINK_MSG_ID_RADIO_STATUS
 
-    def send(self, msg: mavlink.MAVLink_message) -> None:
-        if self.mav.signing.sign_outgoing:  # the signing clock follows wall time, never frozen
-            self.mav.signing.timestamp = max(self.mav.signing.timestamp, signing_timestamp())
-        buf = msg.pack(self.mav)
+    def send(self, msg: mavlink.MAVLink_message, body: bytes | None = None) -> None:
+        """Send one packet to every peer; `body`: the message's payload when the caller already
+        has it (wire.payload, shared by the vehicle's links). Each packet takes the link's next
+        sequence number, as MAVLink says (receivers count gaps as loss)."""
+        mav = self.mav
+        if mav.signing.sign_outgoing:  # the signing clock follows wall time, never frozen
+            mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp())
+            buf = msg.pack(mav)
+        else:
+            buf = wire.frame(msg, wire.payload(msg) if body is None else body, mav.seq, mav.srcSystem,
+                             mav.srcComponent)
+        mav.seq = (mav.seq + 1) & 0xFF
         for peer in self.peers:
             try:
                 self.sock.sendto(buf, peer)

@@ -22,6 +22,7 @@ from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsFix, GpsModel
 from sim.vehicle.model import FlightModel
 
+from . import wire
 from .battery import Battery
 from .failsafe import Failsafes
 from .flying import Flying
@@ -70,6 +71,7 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         self.mode = "AUTO.LOITER"
         self.rates = dict(DEFAULT_RATES)
         self._next_due = {k: 0.0 for k in self.rates}
+        self._stream_next = 0.0  # simulated time the next stream message is due (streams.py)
         self.t = 0.0
         self.fix: GpsFix | None = None
         self.counters = VehicleCounters()
@@ -111,8 +113,14 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
     def send(self, msg: mavlink.MAVLink_message) -> None:
         if "mavlink_signal" in self.failures:
             return  # injected link failure: nothing goes out
-        for link in self.links:
-            link.send(msg)
+        links = self.links
+        if len(links) > 1:  # the payload once for every link (each frames it with its own sequence)
+            body = wire.payload(msg)
+            for link in links:
+                link.send(msg, body)
+        else:
+            for link in links:
+                link.send(msg)
 
     def estimate(self) -> np.ndarray:
         """The autopilot's position estimate: truth plus the GPS error it cannot see (what an
@@ -146,6 +154,7 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
     def set_rate(self, msg_id: int, hz: float) -> None:
         self.rates[msg_id] = hz
         self._next_due[msg_id] = self.t
+        self._stream_next = min(self._stream_next, self.t)
 
     # -- the tick ------------------------------------------------------------------------
     def service(self) -> None:
@@ -160,9 +169,12 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
                     keep(self.counters.handler_errors, f"{msg.get_type()}: {type(e).__name__}: {e}", STATUSTEXT_KEEP)
                     log.exception("dropped %s after a handler error", msg.get_type())
 
-    def tick(self, t: float) -> None:
+    def tick(self, t: float, serve: bool = True) -> None:
+        """One simulated step at time t: answer what arrived (unless the caller just did, as a
+        fleet does for the vehicles whose sockets are ready), fly, stream."""
         dt, self.t = max(t - self.t, 0.0), t
-        self.service()
+        if serve:
+            self.service()
         s = self.model.state
         fix = self.gps.sample(t, s.position_ned, s.velocity_ned)
         if "gps" in self.failures:
