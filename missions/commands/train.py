@@ -68,6 +68,8 @@ def register(app: typer.Typer) -> None:
                                             help="searchnet: student rollouts per DAgger iteration."),
         ppo_updates: int = typer.Option(20, "--ppo-updates", min=0, help="searchnet: PPO updates after DAgger."),
         ppo_episodes: int = typer.Option(128, "--ppo-episodes", min=1, help="searchnet: episodes per PPO update."),
+        val_episodes: int = typer.Option(400, "--val-episodes", min=1,
+                                         help="searchnet: validation episodes that pick the best network."),
         init: Path | None = typer.Option(None, "--init", exists=True, dir_okay=False,
                                          help="searchnet: fine-tune this checkpoint (DAgger with the student "
                                               "driving from iteration 0, then PPO) instead of starting from scratch."),
@@ -87,7 +89,7 @@ def register(app: typer.Typer) -> None:
         if model is Model.searchnet:
             _train_searchnet(out, grid, seed, resume, threads, workers, ray_address, dagger_iterations,
                              dagger_episodes, ppo_updates, ppo_episodes, epochs if epochs != 50 else None,
-                             init, beta0)
+                             init, beta0, val_episodes)
             return
         if dataset is None:
             raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
@@ -113,7 +115,8 @@ def register(app: typer.Typer) -> None:
 
 def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threads: int | None, workers: int,
                      ray_address: str | None, iterations: int, dagger_episodes: int, ppo_updates: int,
-                     ppo_episodes: int, epochs: int | None, init: Path | None = None, beta0: float = 1.0) -> None:
+                     ppo_episodes: int, epochs: int | None, init: Path | None = None, beta0: float = 1.0,
+                     val_episodes: int = 400) -> None:
     """DAgger on the belief planner, then PPO; no dataset (the teacher labels the student's own states)."""
     import torch
 
@@ -127,7 +130,7 @@ def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threa
         dc = DaggerConfig(iterations=iterations, episodes=dagger_episodes, chunks=max(workers, 1), beta0=beta0,
                           **({"epochs": epochs} if epochs else {}))
         tc = SearchTrainConfig(dagger=dc, ppo=PpoConfig(episodes=ppo_episodes), ppo_updates=ppo_updates, seed=seed,
-                               init=None if init is None else str(init))
+                               val_episodes=val_episodes, init=None if init is None else str(init))
     except ValueError as e:
         raise typer.BadParameter(str(e), param_hint="--dagger-iterations") from e
     try:

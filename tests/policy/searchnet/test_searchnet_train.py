@@ -14,7 +14,7 @@ from policy.searchnet import read_searchnet
 from sim.gridworld import GridConfig
 
 ARGS = ["--model", "searchnet", "--dagger-iterations", "2", "--dagger-episodes", "24", "--ppo-updates", "2",
-        "--ppo-episodes", "16", "--width", "5", "--height", "5", "--targets", "2"]
+        "--ppo-episodes", "16", "--val-episodes", "40", "--width", "5", "--height", "5", "--targets", "2"]
 
 
 def _train(out, *extra: str) -> subprocess.CompletedProcess:
@@ -66,7 +66,7 @@ def test_fine_tune_from_a_checkpoint(tmp_path) -> None:
 
     torch.manual_seed(1)
     start = save_searchnet(tmp_path / "start.pt", SearchNet(SearchNetConfig(BELIEF_CHANNELS)))
-    tiny = ["--dagger-episodes", "12", "--ppo-updates", "0", "--width", "5", "--height", "5", "--targets", "2"]
+    tiny = ["--dagger-episodes", "12", "--ppo-updates", "0", "--val-episodes", "40", "--width", "5", "--height", "5", "--targets", "2"]
     cmd = [sys.executable, "-m", "missions", "train", "--model", "searchnet", *tiny]
     r = subprocess.run([*cmd, "--out", str(tmp_path / "ft"), "--init", str(start), "--dagger-iterations", "1",
                         "--dagger-beta0", "0.5"], capture_output=True, text=True, timeout=240)
