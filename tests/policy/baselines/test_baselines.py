@@ -142,3 +142,21 @@ def test_runs_are_reproducible() -> None:
     assert (a.t == b.t).all()
     c = _run("ns", GridConfig(), 100, 5)
     assert not (a.t == c.t).all()
+
+
+def test_dualstream_uses_the_network_shipped_for_the_setting() -> None:
+    """Moving targets get Table I's moving-target dual-stream network (spatiotemporal map, 5
+    actions; the static network refused that map), static ones the paper's static-random
+    network (1-channel map, 4 actions)."""
+    from policy.baselines.registry import make_policy
+    from policy.evaluation.runner import evaluate
+    from sim.gridworld import GridConfig
+
+    walk = GridConfig(motion="random_walk", map_variant="spatiotemporal")
+    moving = make_policy("dualstream", walk)
+    assert not isinstance(moving, LoopGuard)  # the paper's guard is for static targets only
+    res = evaluate(moving, walk, 4, seed=0, progress=False)
+    assert res.moves.shape == (4,) and (res.moves > 0).all()
+    static = make_policy("dualstream", GridConfig())
+    assert isinstance(static, LoopGuard)
+    assert static.inner.scores(np.zeros((1, 3, 3, 3), np.float32), np.zeros((1, 1, 10, 10), np.float32)).shape == (1, 4)
