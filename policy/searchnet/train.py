@@ -86,10 +86,16 @@ def _tensor_tree(sd: dict) -> dict:
     return {k: v.detach().clone() for k, v in sd.items()}
 
 
+def _fixed_part(train: dict) -> dict:
+    """A training config less what a resumed run may extend (DAgger iterations, PPO updates)."""
+    return {**train, "ppo_updates": None, "dagger": {**train["dagger"], "iterations": None}}
+
+
 def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, resume: bool = False,
                     workers: int = 1, ray_address: str | None = None,
                     log: Callable[[str], None] = print) -> Path:
-    """Train (or resume) in `out`; returns the path of the best network (out/searchnet.pt)."""
+    """Train (or resume) in `out`; returns the path of the best network (out/searchnet.pt). A
+    resumed run may be given more DAgger iterations (before PPO has started) or more PPO updates."""
     out = Path(out)
     state_path, data_path, best_path = out / "state.pt", out / "dagger_data.npz", out / "searchnet.pt"
     if state_path.exists() and not resume:
@@ -114,9 +120,16 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
     if state_path.exists():
         doc = read_searchnet(state_path)
         started = {"init": None, **(doc.get("train") or {})}  # runs from before `init` existed
-        if doc.get("grid") != grid.to_dict() or started != tc.to_dict():
+        if doc.get("grid") != grid.to_dict() or _fixed_part(started) != _fixed_part(tc.to_dict()):
             raise CheckpointError(f"{state_path}: was started with another grid or training config; "
                                   f"use the same options to resume (found {doc.get('grid')}, {doc.get('train')})")
+        more_dagger = tc.dagger.iterations - started["dagger"]["iterations"]
+        more_ppo = tc.ppo_updates - started["ppo_updates"]
+        ppo_ran = sum(h.get("stage") == "ppo" for h in doc["history"])
+        if more_dagger < 0 or more_ppo < 0 or (more_dagger > 0 and ppo_ran):
+            raise CheckpointError(f"{state_path}: a resumed run can only be extended (more DAgger iterations "
+                                  f"before any PPO update, more PPO updates); it was started with "
+                                  f"{started['dagger']['iterations']} iterations and {started['ppo_updates']} updates")
         actor.load_state_dict(doc["state_dict"])
         critic.load_state_dict(doc["critic"])
         opt_d.load_state_dict(doc["opt_dagger"])
@@ -126,6 +139,10 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
         if data_path.exists():
             with np.load(data_path) as z:
                 data = {k: z[k] for k in z.files}
+        if more_dagger > 0 and st["stage"] != "dagger":  # extend: back to the DAgger loop
+            st["stage"], st["next"] = "dagger", started["dagger"]["iterations"]
+        elif more_ppo > 0 and st["stage"] == "done":  # extend: more PPO updates after the last one
+            st["stage"], st["next"] = "ppo", ppo_ran
         log(f"resuming {out}: stage {st['stage']}, step {st['next']}")
     prior = tc.teacher_prior
     t0 = time.monotonic() - st["seconds"]

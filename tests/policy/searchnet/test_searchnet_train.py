@@ -77,6 +77,20 @@ def test_fine_tune_from_a_checkpoint(tmp_path) -> None:
     assert it["beta"] == 0.5  # the student drove half the moves of the first iteration
     best = read_searchnet(tmp_path / "ft" / "searchnet.pt")
     assert best["metrics"]["val_moves"] <= state["best"]["val_moves"] + 1e-9
+    # a finished run can be extended: more DAgger iterations (before PPO), then more PPO updates
+    # (a repeated option's last value wins)
+    ft = [*cmd, "--out", str(tmp_path / "ft"), "--init", str(start), "--dagger-beta0", "0.5", "--resume"]
+    assert subprocess.run([*ft, "--dagger-iterations", "2"], capture_output=True, timeout=240).returncode == 0
+    state = read_searchnet(tmp_path / "ft" / "state.pt")
+    assert [h["beta"] for h in state["history"]] == [0.5, 0.25] and state["stage"] == "done"
+    r = subprocess.run([*ft, "--dagger-iterations", "2", "--ppo-updates", "1"], capture_output=True, text=True,
+                       timeout=240)
+    assert r.returncode == 0, r.stderr
+    state = read_searchnet(tmp_path / "ft" / "state.pt")
+    assert [h["stage"] for h in state["history"]] == ["dagger", "dagger", "ppo"]
+    late = subprocess.run([*ft, "--dagger-iterations", "3", "--ppo-updates", "1"], capture_output=True, text=True,
+                          timeout=240)
+    assert late.returncode != 0 and "extended" in late.stdout + late.stderr
     bad = subprocess.run([*cmd, "--out", str(tmp_path / "bad"), "--dagger-iterations", "0"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode != 0 and "init" in bad.stdout + bad.stderr
