@@ -82,6 +82,9 @@ _LEAK = 1e-3
 _LOG_PAIR_CAP = 6.0
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
 _SLOTS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
+_SLOT_DY = np.array([dy for dy, _ in _SLOTS])
+_SLOT_DX = np.array([dx for _, dx in _SLOTS])
+_SLOT_CENTRE = (_SLOT_DY == 0) & (_SLOT_DX == 0)
 
 
 def uniform_prior(cfg: GridConfig) -> np.ndarray:
@@ -173,13 +176,21 @@ class BeliefState:
             dy = cy[None, :] - cy[:, None] + h - 1
             dx = cx[None, :] - cx[:, None] + w - 1
             self._pair = np.clip(np.log(pair[dy, dx]), -_LOG_PAIR_CAP, _LOG_PAIR_CAP).astype(np.float32)
+        #: every position so far was exact, so visited and seen are 0/1 (update's fast path)
+        self._crisp = True
+        #: prior * (1 - seen) while _crisp (static targets' pool weight)
+        self._unseen_prior = np.repeat(self.prior[None], n, axis=0)
         self.target = self._target()
 
     # ----------------------------------------------------------------- derived quantities
-    def _pool(self) -> np.ndarray:
-        """Static: the never-sighted targets, R - n_found - sighted, over the unseen cells."""
-        left = self.cfg.n_targets - self.n_found - self._sighted.sum(axis=(1, 2), dtype=np.float64)
-        weight = self.prior[None] * (1.0 - self.seen)
+    def _pool(self, sighted_sum: np.ndarray | None = None) -> np.ndarray:
+        """Static: the never-sighted targets, R - n_found - sighted, over the unseen cells.
+        sighted_sum: the (n,) float64 sums of _sighted when the caller has them already."""
+        if sighted_sum is None:
+            sighted_sum = self._sighted.sum(axis=(1, 2), dtype=np.float64)
+        left = self.cfg.n_targets - self.n_found - sighted_sum
+        # prior * (1 - seen), kept up to date cell by cell while seen is 0/1 (the same numbers)
+        weight = self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
         if self._pair is not None:
             # pairwise placement structure: each known target (sighted or found) multiplies the
             # density of the others by the pair correlation at their offset (a lattice's spacing)
@@ -190,10 +201,10 @@ class BeliefState:
         scale = np.where(tot > 1e-12, np.maximum(left, 0.0) / np.maximum(tot, 1e-12), 0.0)
         return (weight * scale[:, None, None]).astype(np.float32)
 
-    def _target(self) -> np.ndarray:
+    def _target(self, sighted_sum: np.ndarray | None = None) -> np.ndarray:
         if self.cfg.moving:
             return self._sighted.copy()
-        return self._sighted + self._pool()
+        return self._sighted + self._pool(sighted_sum)
 
     @property
     def sighted(self) -> np.ndarray:
@@ -253,7 +264,92 @@ class BeliefState:
         self.position = p
 
         tgt_slots = views[:, 0].astype(np.float32)  # (n, 3, 3)
-        u = self._target() if not cfg.moving else self._sighted
+        # the unfound density before this observation: self.target is what _target() returned at
+        # the end of the last update (nothing it reads has changed since)
+        u = self.target if not cfg.moving else self._sighted
+        exact = obs.position_prob is None
+        if exact:
+            cells, det_u_c, det_f_c, newly = self._view_exact(obs.positions, tgt_slots, u)
+        else:
+            self._crisp = False
+            keep, det_u, det_f, newly = self._view_spread(p, tgt_slots, u)
+        events = self._find_events(obs)
+        if events is not None:
+            newly = events
+        # an episode still running has at least one target left (the mission ends with the last)
+        cap = np.where(np.asarray(obs.active, dtype=bool), cfg.n_targets - 1, cfg.n_targets)
+        self.n_found = np.minimum(self.n_found + newly, cap)
+        sighted_sum = None
+        if exact and not cfg.moving:
+            # the arrays below, computed on the <= 9 cells in view only: out of view keep is 1
+            # (x * 1 + 0 == x), in view it is 0 (0 + det == det), so this is the whole-array
+            # update bit for bit; _cap changes nothing unless a sum exceeds its bound
+            sighted = self._sighted.copy()
+            sighted[cells] = det_u_c
+            found = self.found.copy()
+            found[cells] = det_f_c
+            sighted_sum = sighted.sum(axis=(1, 2), dtype=np.float64)
+            if (sighted_sum > self.remaining + 1e-6).any():
+                sighted, sighted_sum = self._cap(sighted, self.remaining), None
+            if (found.sum(axis=(1, 2), dtype=np.float64) > self.n_found + 1e-6).any():
+                found = self._cap(found, self.n_found)
+            self._sighted, self.found = sighted, found
+        else:
+            if exact:
+                keep, det_u, det_f = self._view_arrays(cells, det_u_c, det_f_c)
+            if cfg.moving:
+                # the shown targets cannot hold more unfound (found) ones than there are: move
+                # the excess of either attribution to the other
+                for src, dst, total in ((det_u, det_f, self.remaining), (det_f, det_u, self.n_found)):
+                    have = src.sum(axis=(1, 2), dtype=np.float64)
+                    over = np.where(have > total + 1e-6, 1.0 - total / np.maximum(have, 1e-9), 0.0)
+                    moved = src * over[:, None, None].astype(np.float32)
+                    src -= moved
+                    dst += moved
+                self._sighted = self._rescale(self._sighted * keep, det_u, self.remaining)
+                self.found = self._rescale(self.found * keep, det_f, self.n_found)
+            else:
+                # under GPS noise one target shown from several possible positions spreads over
+                # several cells; the sizes stay capped by what is known
+                self._sighted = self._cap(self._sighted * keep + det_u, self.remaining)
+                self.found = self._cap(self.found * keep + det_f, self.n_found)
+        if exact and self._crisp:
+            # visited and seen are 0/1 while every position so far was exact: then
+            # 1 - (1 - a) * 1 == a and 1 - (1 - a) * 0 == 1, so only the cells in view change
+            pos = np.asarray(obs.positions)
+            self.visited = self.visited.copy()
+            self.visited[self.rows, pos[:, 1], pos[:, 0]] = 1.0
+            # (cells: index arrays, or one episode's block of slices)
+            self.seen = self.seen.copy()
+            self.seen[cells] = 1.0
+            self._unseen_prior[cells] = 0.0
+            self.age[cells] = 0.0
+        else:
+            if exact and not cfg.moving:  # the static branch above did not need keep
+                keep = np.ones_like(p)
+                keep[cells] = 0.0
+            self.visited = 1.0 - (1.0 - self.visited) * (1.0 - p)
+            self.seen = 1.0 - (1.0 - self.seen) * keep
+            self.age *= keep
+        self.t = t.copy()
+        self.target = self._target(sighted_sum)
+
+    def _view_arrays(self, cells: tuple[np.ndarray, ...], det_u_c: np.ndarray,
+                     det_f_c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """_view_exact's cells as _view_spread's whole arrays (keep, det_u, det_f)."""
+        shape = (self.n, self.cfg.height, self.cfg.width)
+        keep = np.ones(shape, np.float32)
+        keep[cells] = 0.0
+        det_u = np.zeros(shape, np.float32)
+        det_u[cells] = det_u_c
+        det_f = np.zeros(shape, np.float32)
+        det_f[cells] = det_f_c
+        return keep, det_u, det_f
+
+    def _view_spread(self, p: np.ndarray, tgt_slots: np.ndarray,
+                     u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What the view showed, for a position distribution p: (keep = 1 - P(in view), unfound
+        targets shown outside the agent's cell, found targets shown, expected new finds)."""
         f = self.found
         tot = u + f
         ratio_u = np.where(tot > 1e-9, u / np.maximum(tot, 1e-9), 1.0)
@@ -270,35 +366,55 @@ class BeliefState:
             else:
                 det_u += shown * ratio_u
                 det_f += shown * (1.0 - ratio_u)
-        inview = np.minimum(inview, 1.0)
-        keep = 1.0 - inview
-        events = self._find_events(obs)
-        if events is not None:
-            newly = events
-        # an episode still running has at least one target left (the mission ends with the last)
-        cap = np.where(np.asarray(obs.active, dtype=bool), cfg.n_targets - 1, cfg.n_targets)
-        self.n_found = np.minimum(self.n_found + newly, cap)
-        if cfg.moving:
-            # the shown targets cannot hold more unfound (found) ones than there are: move the
-            # excess of either attribution to the other
-            for src, dst, total in ((det_u, det_f, self.remaining), (det_f, det_u, self.n_found)):
-                have = src.sum(axis=(1, 2), dtype=np.float64)
-                over = np.where(have > total + 1e-6, 1.0 - total / np.maximum(have, 1e-9), 0.0)
-                moved = src * over[:, None, None].astype(np.float32)
-                src -= moved
-                dst += moved
-            self._sighted = self._rescale(self._sighted * keep, det_u, self.remaining)
-            self.found = self._rescale(self.found * keep, det_f, self.n_found)
-        else:
-            # under GPS noise one target shown from several possible positions spreads over
-            # several cells; the sizes stay capped by what is known (exact positions never cap)
-            self._sighted = self._cap(self._sighted * keep + det_u, self.remaining)
-            self.found = self._cap(self.found * keep + det_f, self.n_found)
-        self.visited = 1.0 - (1.0 - self.visited) * (1.0 - p)
-        self.seen = 1.0 - (1.0 - self.seen) * keep
-        self.age *= keep
-        self.t = t.copy()
-        self.target = self._target()
+        return 1.0 - np.minimum(inview, 1.0), det_u, det_f, newly
+
+    def _view_exact(self, positions: np.ndarray, tgt_slots: np.ndarray,
+                    u: np.ndarray) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, np.ndarray]:
+        """_view_spread for known positions (p one-hot), the same numbers bit for bit, on the
+        cells in view only: each in-map slot shows exactly one cell, so the sums over slots
+        reduce to one term per cell (adding zeros is exact). Returns (cells: index arrays
+        (episode, y, x) of the cells in view, det_u and det_f there, expected new finds)."""
+        n, (h, w) = self.n, (self.cfg.height, self.cfg.width)
+        if n == 1:
+            return self._view_exact_one(positions, tgt_slots, u)
+        pos = np.asarray(positions, dtype=np.int64)
+        ys = pos[:, 1, None] + _SLOT_DY  # (n, 9)
+        xs = pos[:, 0, None] + _SLOT_DX
+        ok = (ys >= 0) & (ys < h) & (xs >= 0) & (xs < w)
+        cells = (np.broadcast_to(self.rows[:, None], ok.shape)[ok], ys[ok], xs[ok])
+        ctr = np.broadcast_to(_SLOT_CENTRE, ok.shape)[ok]
+        uu = u[cells]
+        tot = uu + self.found[cells]
+        ratio = np.where(tot > 1e-9, uu / np.maximum(tot, 1e-9), 1.0)
+        tg = tgt_slots.reshape(n, 9)[ok]
+        shown_u = tg * ratio
+        # the agent's own cell: every target shown there is found (det_f), the unfound share of
+        # it is the expected new find; the other cells split by the unfound share
+        det_u = np.where(ctr, np.float32(0.0), shown_u)
+        det_f = np.where(ctr, tg, tg * (1.0 - ratio))
+        newly = np.zeros(n, np.float64)
+        newly[cells[0][ctr]] = shown_u[ctr]
+        return cells, det_u, det_f, newly
+
+    def _view_exact_one(self, positions: np.ndarray, tgt_slots: np.ndarray,
+                        u: np.ndarray) -> tuple[tuple, np.ndarray, np.ndarray, np.ndarray]:
+        """_view_exact for one episode (the flight): the cells in view are a block, indexed by
+        slices, and the same element-wise arithmetic runs on that block."""
+        h, w = self.cfg.height, self.cfg.width
+        x, y = (int(v) for v in np.asarray(positions).reshape(2))
+        y0, y1, x0, x1 = max(y - 1, 0), min(y + 2, h), max(x - 1, 0), min(x + 2, w)
+        cells = (0, slice(y0, y1), slice(x0, x1))
+        uu = u[cells]
+        tot = uu + self.found[cells]
+        ratio = np.where(tot > 1e-9, uu / np.maximum(tot, 1e-9), 1.0)
+        tg = tgt_slots[0, y0 - y + 1: y1 - y + 1, x0 - x + 1: x1 - x + 1]
+        det_u = tg * ratio
+        centre = (y - y0, x - x0)
+        newly = np.array([det_u[centre]], np.float64)
+        det_u[centre] = 0.0
+        det_f = tg * (1.0 - ratio)
+        det_f[centre] = tg[centre]
+        return cells, det_u, det_f, newly
 
     def _find_events(self, obs) -> np.ndarray | None:
         """(n,) targets found by the last move, where the map M says it: the spatiotemporal
@@ -329,10 +445,14 @@ class BeliefState:
         return (rest * scale[:, None, None] + det).astype(np.float32)
 
     # ------------------------------------------------------------------------- outputs
-    def planes(self) -> np.ndarray:
-        """(n, BELIEF_CHANNELS, h, w) float32 network input; channels as PLANE_NAMES."""
+    def planes(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(n, BELIEF_CHANNELS, h, w) float32 network input; channels as PLANE_NAMES.
+        out: an array of that shape to fill instead of a new one (the decision path's buffer)."""
         n, (h, w) = self.n, (self.cfg.height, self.cfg.width)
-        out = np.empty((n, BELIEF_CHANNELS, h, w), np.float32)
+        if out is None:
+            out = np.empty((n, BELIEF_CHANNELS, h, w), np.float32)
+        elif out.shape != (n, BELIEF_CHANNELS, h, w):
+            raise ValueError(f"out must have shape {(n, BELIEF_CHANNELS, h, w)} (got {out.shape})")
         out[:, 0] = self.visited
         out[:, 1] = self.seen
         out[:, 2] = self.target

@@ -15,6 +15,7 @@ from ..base import Observation, Policy
 from ..belief import BeliefState
 from .checkpoint import load_searchnet
 from .encode import egocentric_np
+from .infer import FastSearchNet
 from .model import SearchNet
 
 
@@ -31,28 +32,51 @@ def obs_tensors(planes: np.ndarray, positions: np.ndarray, valid: np.ndarray,
 class SearchNetPolicy(Policy):
     name = "searchnet"
 
-    def __init__(self, model: SearchNet, name: str = "searchnet", temperature: float = 0.0) -> None:
+    def __init__(self, model: SearchNet, name: str = "searchnet", temperature: float = 0.0,
+                 fast: bool = True) -> None:
         """temperature 0: greedy. > 0: sample from softmax(logits / temperature), seeded by
-        reset(); a near-greedy choice that cannot cycle forever where the belief stops changing."""
+        reset(); a near-greedy choice that cannot cycle forever where the belief stops changing.
+        fast: a single episode (the flight's batch 1) runs the forward through
+        infer.FastSearchNet, the same logits within float32 rounding without torch's
+        per-operation overhead; batches (evaluation, training) run SearchNet."""
         if temperature < 0:
             raise ValueError(f"temperature must be >= 0 (got {temperature})")
         self.model = model.eval()
-        self.name, self.temperature = name, temperature
+        self.name, self.temperature, self.use_fast = name, temperature, fast
+        #: the forward used at batch 1 (None: SearchNet's), and the last one built with its key
+        self.fast: FastSearchNet | None = None
+        self._fast: tuple[tuple, FastSearchNet] | None = None
 
     def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
         self.cfg = cfg
         self.belief = BeliefState(cfg, n)
         self.rng = np.random.default_rng([seed, 0x5EA5C4])
+        self.fast = self._fast_net() if self.use_fast and n == 1 else None
 
-    @torch.inference_mode()
+    def _fast_net(self) -> FastSearchNet:
+        """The fast forward of the model's weights as they are now: kept across resets while no
+        parameter was replaced or changed in place (torch counts in-place writes in _version,
+        so a model trained or loaded further gets a new one)."""
+        key = tuple((id(p), p._version) for p in self.model.parameters())
+        if self._fast is None or self._fast[0] != key:
+            self._fast = (key, FastSearchNet(self.model))
+        return self._fast[1]
+
+    def _logits(self, obs: Observation) -> np.ndarray:
+        self.belief.update(obs)
+        if self.fast is not None:
+            planes = self.belief.planes(out=self.fast.input_planes(self.cfg.height, self.cfg.width))
+            return self.fast.logits(planes, obs.positions, obs.valid)
+        with torch.inference_mode():
+            x, mask = obs_tensors(self.belief.planes(), obs.positions, obs.valid, self.model.cfg.n_actions)
+            return self.model(x, mask).numpy()
+
     def logits(self, obs: Observation) -> np.ndarray:
         """Update the belief with obs and return (n, 5) masked logits for every episode."""
-        self.belief.update(obs)
-        x, mask = obs_tensors(self.belief.planes(), obs.positions, obs.valid, self.model.cfg.n_actions)
-        return self.model(x, mask).numpy()
+        return np.array(self._logits(obs))
 
     def act(self, obs: Observation) -> np.ndarray:
-        z = self.logits(obs)
+        z = self._logits(obs)
         if self.temperature > 0:  # Gumbel-max: a sample from softmax(z / T)
             z = z / self.temperature - np.log(-np.log(self.rng.random(z.shape)))
         a = z.argmax(axis=1)
@@ -60,7 +84,8 @@ class SearchNetPolicy(Policy):
 
 
 def load_searchnet_policy(path: str | Path, cfg: GridConfig | None = None, name: str = "searchnet",
-                          temperature: float = 0.0) -> SearchNetPolicy:
+                          temperature: float = 0.0, fast: bool = True) -> SearchNetPolicy:
+    """fast=False: every batch through SearchNet's torch forward (the reference path)."""
     from ..belief import BELIEF_CHANNELS
 
     model, _ = load_searchnet(path)
@@ -69,4 +94,4 @@ def load_searchnet_policy(path: str | Path, cfg: GridConfig | None = None, name:
 
         raise CheckpointError(f"{path}: trained on {model.cfg.in_channels} belief planes, this belief has "
                               f"{BELIEF_CHANNELS}")
-    return SearchNetPolicy(model, name, temperature)
+    return SearchNetPolicy(model, name, temperature, fast)
