@@ -71,6 +71,8 @@ class LoopGuard(Policy):
         if alpha < 2 or window < alpha:
             raise ValueError(f"need 2 <= alpha <= window (got alpha={alpha}, window={window})")
         self.inner, self.alpha, self.window = policy, alpha, window
+        #: decide a single episode through _act_one (False: the array path, for tests)
+        self.scalar_one = True
         self.name = policy.name
         self.needs_truth = policy.needs_truth
 
@@ -83,12 +85,49 @@ class LoopGuard(Policy):
         self.fallback = np.zeros(n, dtype=bool)
         self.count = np.zeros(n, dtype=np.int64)
         self.rows = np.arange(n)
+        #: batch 1: how often each cell occurs in the queue's filled part (see _act_one)
+        self._counts: dict[tuple[int, int], int] = {}
+
+    def _act_one(self, obs: Observation, a: np.ndarray) -> np.ndarray:
+        """act() for a single episode (the flight decides at batch 1): the same state changes
+        and actions (tested against the array path), with Python scalars for the cell and a
+        running count of each queued cell instead of scanning the queue: at batch 1 the
+        guard's cost is numpy's per-call overhead, ~25 calls per decision."""
+        if not bool(obs.active[0]):
+            return a
+        x, y = (int(v) for v in obs.positions[0])
+        new_cell = not self.visited[0, y, x]
+        self.visited[0, y, x] = True
+        if self.fallback[0] and new_cell:  # leaving the fallback: the queue starts empty
+            self.fallback[0] = False
+            self.qlen[0] = 0
+            self._counts.clear()
+        if not self.fallback[0]:
+            n = int(self.qlen[0])
+            slot = n % self.window
+            if n >= self.window:  # the ring is full: its oldest entry is overwritten
+                old = (int(self.queue[0, slot, 0]), int(self.queue[0, slot, 1]))
+                self._counts[old] -= 1
+            self.queue[0, slot] = (x, y)
+            self.qlen[0] = n + 1
+            same = self._counts.get((x, y), 0) + 1
+            self._counts[(x, y)] = same
+            if same >= self.alpha:
+                self.count[0] += 1
+                self.fallback[0] = True
+        if self.fallback[0]:
+            a[:] = vote(obs.positions[:1], self.visited, self.rng)
+            if a[0] == Action.N:  # nothing left unvisited: any valid move
+                a[:] = random_valid(obs.valid[:1, :4], self.rng)
+        return a
 
     def loops(self) -> np.ndarray:
         return self.count.copy()
 
     def act(self, obs: Observation) -> np.ndarray:
         a = np.asarray(self.inner.act(obs), dtype=np.int64).copy()
+        if self.scalar_one and len(a) == 1:
+            return self._act_one(obs, a)
         act, pos, rows = obs.active, obs.positions, self.rows
         new_cell = ~self.visited[rows, pos[:, 1], pos[:, 0]]
         self.visited[rows[act], pos[act, 1], pos[act, 0]] = True

@@ -244,6 +244,9 @@ class BeliefState:
     def update(self, obs) -> None:
         """Fold one decision's observation (views, positions, t, active, position_prob) in."""
         cfg = self.cfg
+        if self.n == 1 and obs.position_prob is None and self._crisp and not cfg.moving:
+            self._update_one(obs)
+            return
         t = np.asarray(obs.t, dtype=np.int64)
         views = np.asarray(obs.views)
         if views.shape[1:] != (3, 3, 3) or len(views) != self.n:
@@ -333,6 +336,59 @@ class BeliefState:
             self.age *= keep
         self.t = t.copy()
         self.target = self._target(sighted_sum)
+
+    def _update_one(self, obs) -> None:
+        """update() for one episode with an exact position and static targets while visited and
+        seen are 0/1 (the flight's case): the same numbers bit for bit (tested against the
+        general path), with the episode's scalars as Python floats (IEEE doubles, like numpy's
+        float64) and array work only on the cells in view and the pool: at batch 1 numpy's
+        per-call cost, not the arithmetic, is what a decision pays."""
+        views = np.asarray(obs.views)
+        if views.shape != (1, 3, 3, 3):
+            raise ValueError(f"views must be (1, 3, 3, 3) grid views (got {views.shape})")
+        t = int(np.asarray(obs.t).reshape(-1)[0])
+        prev = int(self.t[0])
+        dt = max(t - prev, 0) if prev >= 0 else 0
+        if dt:
+            self.age += np.float32(dt)
+        x, y = (int(v) for v in np.asarray(obs.positions).reshape(2))
+        p = np.zeros_like(self.position)
+        p[0, y, x] = 1.0
+        self.position = p
+        cells, det_u_c, det_f_c, newly = self._view_exact_one(obs.positions, views[:, 0].astype(np.float32),
+                                                              self.target)
+        events = self._find_events(obs)
+        new = float((events if events is not None else newly)[0])
+        r = self.cfg.n_targets
+        cap = r - 1 if bool(np.asarray(obs.active).reshape(-1)[0]) else r
+        n_found = min(float(self.n_found[0]) + new, cap)
+        self.n_found = np.array([n_found], np.float64)
+        sighted = self._sighted.copy()
+        sighted[cells] = det_u_c
+        found = self.found.copy()
+        found[cells] = det_f_c
+        sighted_sum = sighted.sum(axis=(1, 2), dtype=np.float64)
+        if sighted_sum[0] > (r - n_found) + 1e-6:
+            sighted, sighted_sum = self._cap(sighted, self.remaining), None
+        if found.sum(axis=(1, 2), dtype=np.float64)[0] > n_found + 1e-6:
+            found = self._cap(found, self.n_found)
+        self._sighted, self.found = sighted, found
+        self.visited = self.visited.copy()
+        self.visited[0, y, x] = 1.0
+        self.seen = self.seen.copy()
+        self.seen[cells] = 1.0
+        self._unseen_prior[cells] = 0.0
+        self.age[cells] = 0.0
+        self.t = np.array([t], np.int64)
+        if self._pair is not None or sighted_sum is None:
+            self.target = self._target(sighted_sum)
+            return
+        # _pool with Python scalars: left, the unseen prior's total and the scale
+        left = r - n_found - float(sighted_sum[0])
+        weight = self._unseen_prior
+        tot = float(weight.sum(axis=(1, 2))[0])
+        scale = max(left, 0.0) / max(tot, 1e-12) if tot > 1e-12 else 0.0
+        self.target = sighted + (weight * scale).astype(np.float32)
 
     def _view_arrays(self, cells: tuple[np.ndarray, ...], det_u_c: np.ndarray,
                      det_f_c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -197,3 +197,35 @@ def test_every_trigger_counts_one_loop_and_the_guard_sees_what_m_shows() -> None
         # the guard's own visited mask is M's visited cells (> 0) before this move
         assert (guard.visited[0] == (obs.maps[0, 0] > 0)).all()
     assert guard.loops()[0] == entries >= 10  # the pendulum loops again after every break
+
+
+@pytest.mark.parametrize("inner, window", [("random", 40), ("random", 5), ("pendulum", 40), ("pendulum", 5)])
+def test_single_episode_path_equals_the_array_path(inner: str, window: int) -> None:
+    """A single episode (the flight) goes through LoopGuard._act_one: the same actions, loop
+    counts and queue as the array path, on real episodes, with the ring overflowing (small
+    windows) and with fallbacks entered and left many times."""
+    from policy.base import observe
+    from policy.baselines.registry import make_policy
+
+    cfg = GridConfig(width=7, height=6, n_targets=3)
+    triggers = 0
+    for seed in range(8):
+        guards = []
+        for scalar in (True, False):
+            g = LoopGuard(make_policy("random", cfg) if inner == "random" else _Pendulum(), window=window)
+            g.scalar_one = scalar
+            g.reset(cfg, 1, seed)
+            guards.append(g)
+        world = BatchGridWorld(sample_episodes(cfg, 1, seed), seed)
+        while not world.done.all():
+            obs = observe(world)
+            a, b = (g.act(obs) for g in guards)
+            assert np.array_equal(a, b), (seed, int(obs.t[0]))
+            fast, ref = guards
+            for name in ("count", "fallback", "qlen", "visited"):
+                assert np.array_equal(getattr(fast, name), getattr(ref, name)), name
+            k = min(int(ref.qlen[0]), window)
+            assert np.array_equal(fast.queue[0, :k], ref.queue[0, :k])
+            world.step(a)
+        triggers += int(ref.count[0])
+    assert triggers >= 8
