@@ -74,3 +74,23 @@ def test_bad_prior_and_params_are_clear_errors():
         PlannerParams(pickup=-1)
     with pytest.raises(FileNotFoundError):
         BeliefPlanner(prior="/nonexistent/dataset").reset(GridConfig(), 2, 0)
+
+
+@pytest.mark.parametrize("radius", [1, 2])
+@pytest.mark.parametrize("shape", [(3, 6, 7), (1, 2, 2), (4, 20, 20)])
+def test_window_sums_equal_the_shifted_copies_bit_for_bit(radius: int, shape: tuple[int, int, int]) -> None:
+    """_window reads the shifted copies as slices of one padded array; the sums (and so the
+    planner's decisions) must be the ones of adding belief.state._shift copies in order."""
+    from policy.belief.state import _shift
+    from policy.planner.planner import _window
+
+    rng = np.random.default_rng(radius)
+    for dtype in (np.float64, np.float32):
+        a = (rng.random(shape) - 0.3).astype(dtype) * 10.0 ** rng.integers(-6, 3, shape)
+        want = np.zeros_like(a)
+        for dy in range(-radius, radius + 1):
+            for dx in range(-radius, radius + 1):
+                want += _shift(a, dy, dx)
+        got = _window(a, radius)
+        assert got.dtype == a.dtype
+        np.testing.assert_array_equal(got, want)
