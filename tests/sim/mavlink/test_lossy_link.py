@@ -219,3 +219,22 @@ def test_a_timed_capture_asked_again_later_is_the_same_picture(lossy_sitl) -> No
         assert np.array_equal(again, frame)
         assert sitl.t > t1 + FRAME_REUSE_S, "simulated time ran on meanwhile"
     assert proxy.down.counts.duplicated + proxy.down.counts.reordered > 0
+
+
+def test_a_land_resent_after_touchdown_is_accepted(sitl_factory) -> None:
+    """LAND's ACK lost, the companion resends it; meanwhile the vehicle has landed and
+    disarmed. The resent LAND must not be refused (it was: TEMPORARILY_REJECTED, and a
+    64-move search through 20 % loss that had flown every move ended as a failure)."""
+    from autopilot_bridge.link import VehicleLink
+
+    sitl = sitl_factory(physics="kinematic", speedup=10.0, gcs_link=False)
+    with VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}") as link:
+        link.wait_heartbeat()
+        link.wait_for(lambda: link.telemetry.gps.get("fix_type", 0) >= 3 and bool(link.telemetry.home), 10, "a fix")
+        link.arm()
+        link.takeoff(link.telemetry.home["alt"] + 2.0)
+        link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -1.5, 20, "take-off")
+        link.land()
+        link.wait_for(lambda: not link.telemetry.armed, 20, "landing and disarm")
+        link.land()  # the resend: accepted, nothing to do
+        assert not sitl.model.state.armed and sitl.model.state.landed
