@@ -501,12 +501,14 @@ class BeliefState:
         return (rest * scale[:, None, None] + det).astype(np.float32)
 
     # ------------------------------------------------------------------------- outputs
-    def planes(self, out: np.ndarray | None = None) -> np.ndarray:
+    def planes(self, out: np.ndarray | None = None, constants: bool = True) -> np.ndarray:
         """(n, BELIEF_CHANNELS, h, w) float32 network input; channels as PLANE_NAMES.
-        out: an array of that shape to fill instead of a new one (the decision path's buffer)."""
+        out: an array of that shape to fill instead of a new one (the decision path's buffer);
+        constants=False: out holds this belief's prior and on-map planes already (they never
+        change), leave them."""
         n, (h, w) = self.n, (self.cfg.height, self.cfg.width)
         if out is None:
-            out = np.empty((n, BELIEF_CHANNELS, h, w), np.float32)
+            out, constants = np.empty((n, BELIEF_CHANNELS, h, w), np.float32), True
         elif out.shape != (n, BELIEF_CHANNELS, h, w):
             raise ValueError(f"out must have shape {(n, BELIEF_CHANNELS, h, w)} (got {out.shape})")
         out[:, 0] = self.visited
@@ -514,7 +516,8 @@ class BeliefState:
         out[:, 2] = self.target
         out[:, 3] = self.found
         out[:, 4] = self.position
-        out[:, 5] = (self.prior * self.cfg.n_targets)[None]
         out[:, 6] = np.where(self.seen > 0, np.minimum(self.age / _STALE_SCALE, 1.0), 1.0)
-        out[:, 7] = 1.0
+        if constants:
+            out[:, 5] = (self.prior * self.cfg.n_targets)[None]
+            out[:, 7] = 1.0
         return out

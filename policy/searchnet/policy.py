@@ -52,6 +52,7 @@ class SearchNetPolicy(Policy):
         self.belief = BeliefState(cfg, n)
         self.rng = np.random.default_rng([seed, 0x5EA5C4])
         self.fast = self._fast_net() if self.use_fast and n == 1 else None
+        self._constants_in_buffer = False  # the fast path's plane buffer holds this belief's prior
 
     def _fast_net(self) -> FastSearchNet:
         """The fast forward of the model's weights as they are now: kept across resets while no
@@ -65,7 +66,9 @@ class SearchNetPolicy(Policy):
     def _logits(self, obs: Observation) -> np.ndarray:
         self.belief.update(obs)
         if self.fast is not None:
-            planes = self.belief.planes(out=self.fast.input_planes(self.cfg.height, self.cfg.width))
+            planes = self.belief.planes(out=self.fast.input_planes(self.cfg.height, self.cfg.width),
+                                        constants=not self._constants_in_buffer)
+            self._constants_in_buffer = True
             return self.fast.logits(planes, obs.positions, obs.valid)
         with torch.inference_mode():
             x, mask = obs_tensors(self.belief.planes(), obs.positions, obs.valid, self.model.cfg.n_actions)

@@ -92,3 +92,14 @@ def test_planes_fill_a_given_buffer() -> None:
     np.testing.assert_array_equal(out, b.planes())
     with pytest.raises(ValueError, match="out must have shape"):
         b.planes(out=np.zeros((1, 8, 4, 5), np.float32))
+
+
+def test_planes_can_leave_the_constant_planes_of_a_filled_buffer() -> None:
+    cfg = GridConfig(width=5, height=4, n_targets=2)
+    b = BeliefState(cfg, 1)
+    world = BatchGridWorld(sample_episodes(cfg, 1, 0), 0)
+    out = b.planes(out=np.zeros((1, 8, 4, 5), np.float32))
+    for _ in range(4):
+        world.step(np.array([0]))
+        b.update(observe(world))
+        np.testing.assert_array_equal(b.planes(out=out, constants=False), b.planes())
