@@ -18,6 +18,7 @@ the bias's share of that variance and its correlation time are the receiver's er
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -149,6 +150,49 @@ class GpsEstimator:
             return False
         self.kf.update(z, R=r)
         return True
+
+    def observe_position(self, t: float, position: np.ndarray, sd_m: float, axes: tuple[int, ...] = (0, 1)) -> None:
+        """Fuse a measurement of the true position along `axes` (0 north, 1 east, 2 down; no GPS
+        bias in it): the vehicle on the ground at its surveyed launch point, a target seen at a
+        known offset from the camera standing on a cell's centre, the camera's height from a
+        target's size. It is what makes the bias observable: GPS alone cannot tell the bias from
+        the position. Times before the last fused fix are taken as now (the filter does not run
+        backwards)."""
+        z = np.asarray(position, dtype=float).reshape(len(axes))
+        if not np.all(np.isfinite(z)) or not (math.isfinite(sd_m) and sd_m > 0):
+            raise ValueError(f"position must be finite and sd > 0 (got {z}, {sd_m})")
+        if self._t is None:
+            raise RuntimeError("no GPS fix fused yet")
+        if t > self._t:
+            self._predict_to(t)
+        m = len(axes)
+        h = np.zeros((m, 9))
+        h[np.arange(m), list(axes)] = 1.0
+        r = np.eye(m) * sd_m**2
+        x, p = self.kf.x, self.kf.P
+        k = p @ h.T @ np.linalg.inv(h @ p @ h.T + r)
+        self.kf.x = x + k @ (z - h @ x)
+        i_kh = np.eye(9) - k @ h
+        self.kf.P = i_kh @ p @ i_kh.T + k @ r @ k.T  # Joseph form
+
+    def doubt_split(self, sd_m: float) -> None:
+        """Add sd_m^2 of doubt to how the GPS reading splits into position and bias (north,
+        east), keeping the doubt on their sum (what the receiver measures) as it is: a position
+        measurement that contradicts the posterior (a target seen off the field) then moves the
+        estimate to it instead of being averaged with a wrong belief."""
+        v = sd_m**2
+        p = self.kf.P
+        for i in (0, 1):
+            p[i, i] += v
+            p[i + 6, i + 6] += v
+            p[i, i + 6] -= v
+            p[i + 6, i] -= v
+
+    @property
+    def bias_ned(self) -> np.ndarray:
+        """The estimated GPS bias (north, east, down): what the autopilot's own GPS-fed estimate
+        is off by, so a setpoint shifted by it puts the vehicle truly where it is meant to be."""
+        return self.kf.x[6:9].copy() if self._t is not None else np.zeros(3)
 
     def posterior(self, t: float | None = None) -> PositionPosterior:
         """The posterior of the true position now, or predicted forward to time t (without

@@ -33,11 +33,18 @@ from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, GridConfig, cell_to_ned, nearest_cell
 from sim.gridworld.geodesy import HomePosition
 
-from .detector import DetectorConfig, frame_to_view, valid_moves
+from .detector import (
+    CAMERA_BELOW_M,
+    DetectorConfig,
+    blob_cells,
+    blobs_to_view,
+    find_blobs,
+    valid_moves,
+)
 from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import LinkError, VehicleLink
-from .probmap import ProbabilisticVisitationMap
+from .probmap import ProbabilisticVisitationMap, cell_probabilities
 
 log = logging.getLogger(__name__)
 DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
@@ -60,6 +67,21 @@ SETTLED_LOOKBACK_S = 0.5
 LOCAL_KEEP = 10_000
 VISIT_MAPS = ("probabilistic", "hard")
 KEEP_FRAMES = 7
+#: the receiver's fix period (GPS_RAW_INT at 5 Hz)
+FIX_PERIOD_S = 0.2
+#: the launch point (home, the spawn cell's centre) as a position measurement while the vehicle
+#: stands on it disarmed: sd of where the vehicle stands on its pad (m)
+LAUNCH_SD_M = 0.05
+#: simulated seconds of fixes on the launch point registered before arming
+LAUNCH_S = 2.0
+#: a target seen on a cell's centre measures the camera's true position when its cell is
+#: unambiguous: registered only if the nearest lattice point is at least this probable per axis
+REGISTER_P = 0.9
+#: a target counts as found when the camera is truly over it: its centre within this of the
+#: nadir on both axes (the scorer's half cell less the detector's error); a target in the
+#: believed cell but further off is re-centred on first (at most RECENTRE times a move)
+FOUND_M = 0.8
+RECENTRE = 2
 
 
 @dataclass(frozen=True)
@@ -75,12 +97,22 @@ class SearchSpec:
     decision_period_s: float = 4.0
     #: "probabilistic": visits spread over the position posterior; "hard": the believed cell only
     visit_map: str = "probabilistic"
+    #: on the probabilistic map, a decision whose posterior puts at least this much in the
+    #: believed cell takes the position as exact (map and policy): the crisp world the policy
+    #: plans in (a soft map of a position that is known anyway only blurs it). 1.0: never
+    exact_above: float = 0.9
+    #: register the GPS bias: the launch point and targets on cell centres measure the true
+    #: position, and setpoints are shifted by the estimated bias so the camera is truly over
+    #: the cell it is meant to be over (False: fly in the GPS-estimate frame, as before)
+    register: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
             raise ValueError(f"decision_period_s must be > 0 (got {self.decision_period_s})")
         if self.visit_map not in VISIT_MAPS:
             raise ValueError(f"visit_map must be one of {VISIT_MAPS} (got {self.visit_map!r})")
+        if not 0.0 < self.exact_above <= 1.0:
+            raise ValueError(f"exact_above must be in (0, 1] (got {self.exact_above})")
 
 
 @dataclass
@@ -95,6 +127,16 @@ class SearchLog:
     posterior_cov_ne: list[list[list[float]]] = field(default_factory=list)
     #: per decision: the target channel of the 3 x 3 view I the detector made of the frame
     seen: list[list[list[int]]] = field(default_factory=list)
+    #: per decision: the targets' blobs registered as position measurements (0 when ambiguous)
+    registered: list[int] = field(default_factory=list)
+    #: per decision: whether the position was taken as exact (the believed cell held >= exact_above)
+    exact: list[bool] = field(default_factory=list)
+    #: every setpoint sent (local north, east; the autopilot's estimate frame)
+    setpoints_local: list[list[float]] = field(default_factory=list)
+    #: times the vehicle centred over a target in its cell before deciding (no move counted)
+    recentred: int = 0
+    #: per decision: the targets seen, [north, east] offsets from the camera (m)
+    blobs: list[list[list[float]]] = field(default_factory=list)
     frames: int = 0
     frames_missing: int = 0
     #: times the schedule slipped half a period because a leg had not settled at t_k
@@ -145,6 +187,8 @@ class PolicyService:
         self.sim_time_s = 0.0  # the latest simulated time any telemetry was stamped with
         self.t_ref: float | None = None  # the schedule's origin on the simulated clock
         self._first_fix_t: float | None = None
+        self._launch_registered = False
+        self._dropped_until = -math.inf
         self._setpoint_lock = threading.Lock()
         link.add_handler(self._on_message)
 
@@ -177,13 +221,27 @@ class PolicyService:
 
     def fuse_until(self, t: float) -> None:
         """Fuse the received fixes stamped up to simulated time t, in order; later ones wait,
-        so the posterior at a decision does not depend on how fast the link delivered."""
+        so the posterior at a decision does not depend on how fast the link delivered. The
+        receiver's last fix before t is waited for a little (it may trail the frame)."""
+        try:
+            self.link.wait_for(lambda: self._last_gps_t > t - FIX_PERIOD_S + 1e-6, 0.5, "")
+        except LinkError:
+            pass  # a fix lost on the link: fuse what came
         with self._fix_lock:
             due = []
             while self._fixes and self._fixes[0][0] <= t + 1e-6:
                 due.append(self._fixes.popleft())
         for ft, ned, eph, epv in due:
-            self.estimator.update(ft, ned, eph, epv)
+            if ft > self._dropped_until + 1e-6:
+                self.estimator.update(ft, ned, eph, epv)
+
+    def drop_fixes_until(self, t: float) -> None:
+        """Discard the fixes stamped up to simulated time t (unfused), those still on their
+        way included."""
+        self._dropped_until = max(self._dropped_until, t)
+        with self._fix_lock:
+            while self._fixes and self._fixes[0][0] <= t + 1e-6:
+                self._fixes.popleft()
 
     def _settled_at(self, t: float, local_ne: np.ndarray) -> bool:
         """Settled on the setpoint at simulated time t, by the autopilot's latest telemetry
@@ -234,12 +292,20 @@ class PolicyService:
         # this process took to get going; the start cell comes from the fixes up to it
         period = self.spec.decision_period_s
         self.t_ref = period * math.ceil((self._first_fix_t + 0.5) / period)
+        self._register_launch()
         link.arm()
         link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
         link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
                       timeout, f"take-off to {self.spec.altitude_m} m")
         self.wait_sim_time(self.t_ref, timeout)
-        self.fuse_until(self.t_ref)
+        if self._launch_registered:
+            # the climb is flown on wall-clock command timing (AUTO.TAKEOFF holds the estimate
+            # of the instant it was commanded): its fixes would leak centimetres of that timing
+            # into the bias the setpoints are shifted by. The registered launch predicted
+            # forward stands instead; fixes resume with the first leg.
+            self.drop_fixes_until(self.t_ref)
+        else:
+            self.fuse_until(self.t_ref)
         local = link.telemetry.local
         self._setpoint = np.array([local["n"], local["e"], -self.spec.altitude_m])
         self._expect(DECISION_DEADLINE_S)
@@ -247,9 +313,86 @@ class PolicyService:
         time.sleep(0.3)  # PX4 wants a setpoint stream before OFFBOARD
         link.set_mode("OFFBOARD")
 
+    def _register_launch(self) -> None:
+        """Disarmed on the ground, the vehicle stands on home (its launch point, given in the
+        field frame by HOME_POSITION): each fix of LAUNCH_S simulated seconds is fused
+        with that true position beside it, which averages the receiver's white noise out of
+        the GPS bias, so the first cells are flown truly over their centres. (The vehicle waits
+        disarmed for this companion, so those seconds are on the ground in every run.)"""
+        if not self.spec.register or self.link.telemetry.armed or self._first_fix_t is None:
+            return
+        # a window on a lattice of the simulated clock after the first fix heard, so a first
+        # fix lost or late by a tick registers the same fixes (reproducible)
+        t_start = LAUNCH_S * math.ceil((self._first_fix_t + 0.5) / LAUNCH_S)
+        t_end = t_start + LAUNCH_S
+        # every fix stamped up to t_end has arrived once a later one has
+        self.link.wait_for(lambda: self._last_gps_t > t_end + 1e-6, 30.0, f"GPS fixes after {t_end:.1f} s")
+        home = self._home_in_field()[:2]
+        with self._fix_lock:
+            due = [f for f in self._fixes if t_start - 1e-6 <= f[0] <= t_end + 1e-6]
+            while self._fixes and self._fixes[0][0] <= t_end + 1e-6:
+                self._fixes.popleft()
+        for ft, ned, eph, epv in due:
+            self.estimator.update(ft, ned, eph, epv)
+            post = self.estimator.posterior()
+            err = post.mean_ned[:2] - home
+            if float(err @ np.linalg.solve(post.horizontal_cov, err)) > 25.0:  # not on its pad (moved?)
+                log.warning("the vehicle is not at home (%.1f m off): launch point not registered", np.hypot(*err))
+                return
+            self.estimator.observe_position(ft, home, LAUNCH_SD_M)
+        self._launch_registered = True
+        log.info("launch point registered over %d fixes: GPS bias (n, e, d) %s m", len(due),
+                 np.round(self.estimator.bias_ned, 2))
+
+    def camera_height(self) -> float:
+        """The camera's height over the (flat) field: the autopilot holds the commanded height
+        on its barometer (decimetres of drift)."""
+        return self.spec.altitude_m - CAMERA_BELOW_M
+
+    def _register_targets(self, t: float, blobs: list, cell: np.ndarray) -> tuple[int, bool]:
+        """Static targets stand on cell centres: a target seen at a (GPS-free) offset from the
+        camera says where the camera truly is, up to which cell it stands in. Each blob whose
+        cell is unambiguous given the posterior (nearest lattice point >= REGISTER_P per axis)
+        is fused as a position measurement; so is, whatever the odds, a target placed off the
+        field (targets stand on it: the frame is a cell off, so it is put on the nearest cell
+        of the field). Returns how many were fused and whether a target fused in the believed
+        cell is off the nadir by more than FOUND_M (the vehicle is not truly over it yet)."""
+        if not self.spec.register or self.spec.grid.moving or not blobs:
+            return 0, False
+        g = self.spec.grid
+        used, off_centre = 0, False
+        cell_m = 2.0
+        height = self.camera_height()
+        for b in sorted(blobs, key=lambda b: b.sd_m):
+            post = self.estimator.posterior(t)
+            mean = post.mean_ned[:2]
+            offset = np.asarray(b.offset_ne(height))
+            (cx, cy), = blob_cells([b], mean, height)
+            on = (int(np.clip(cx, 0, g.width - 1)), int(np.clip(cy, 0, g.height - 1)))
+            off_field = on != (cx, cy)
+            z = cell_to_ned(np.array(on)) - offset  # where the camera is, if the target is there
+            r = np.abs(z - mean)
+            s2 = np.diag(post.horizontal_cov) + b.sd_m**2
+            # 1-D odds of the nearest lattice point against the next one along each axis
+            ambiguous = (cell_m - r) ** 2 - r**2 < 2.0 * s2 * math.log(REGISTER_P / (1.0 - REGISTER_P))
+            if off_field:
+                self.estimator.doubt_split(cell_m)
+            elif ambiguous.any():
+                continue
+            self.estimator.observe_position(t, z, b.sd_m)
+            used += 1
+            if on == (int(cell[0]), int(cell[1])) and not b.at_edge and np.abs(offset).max() > FOUND_M:
+                off_centre = True
+        return used, off_centre
+
     def _fly_to(self, cell: np.ndarray) -> np.ndarray:
-        """Send the new setpoint at once (the stream repeats it); returns it in local NED."""
+        """Send the new setpoint at once (the stream repeats it); returns it in local NED. The
+        autopilot flies its GPS-fed estimate (truth + bias): the setpoint is shifted by the
+        estimated bias so the vehicle is truly over the cell's centre."""
         local = self.field_to_local(cell_to_ned(cell))
+        if self.spec.register:
+            local = local + self.estimator.bias_ned[:2]
+        self.log.setpoints_local.append([round(float(v), 4) for v in local])
         self._expect(DECISION_DEADLINE_S)
         with self._setpoint_lock:
             self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
@@ -289,17 +432,39 @@ class PolicyService:
         local = self._fly_to(cell)
         # the first decision: take-off and the first leg fit in three periods
         t_k = (self.t_ref if self.t_ref is not None else self.sim_time_s) + 3 * self.spec.decision_period_s
+        if self._launch_registered:
+            # likewise the climb's tail and the first leg, which starts at the wall-clock instant
+            # this loop began: the hover's fixes before the first decision stand for them
+            self._dropped_until = max(self._dropped_until, t_k - self.spec.decision_period_s / 2)
         self.policy.reset(g, 1, int(self.rng.integers(1 << 30)))
         found = 0
         for move in range(max_moves + 1):
-            frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
-            t0 = time.perf_counter()
-            self.fuse_until(t_k)
+            for attempt in range(RECENTRE + 1):
+                frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
+                t0 = time.perf_counter()
+                self.fuse_until(t_k)
+                blobs = find_blobs(frame, self.det) if frame is not None else []
+                registered, off_centre = self._register_targets(t_k, blobs, cell)
+                if not off_centre or attempt == RECENTRE or self.pmap.met[cell[1], cell[0]] > 0.5:
+                    break
+                # a target in this cell but not under the camera: centre on it (the bias just
+                # registered moves the setpoint) and look again; no move of the policy's
+                self.log.recentred += 1
+                local = self._fly_to(cell)
+                t_k = t_k + self.spec.decision_period_s
+            height = self.camera_height()
+            self.log.blobs.append([[round(v, 3) for v in b.offset_ne(height)] for b in blobs])
+            self.log.registered.append(registered)
             post = self.estimator.posterior(t_k)
-            if self.spec.visit_map == "hard":
+            exact = self.spec.visit_map == "hard"
+            if not exact:  # known to the cell: the crisp visit, as the grid world's
+                p_cell = cell_probabilities(post.mean_ned[:2], post.horizontal_cov, g.width, g.height)
+                exact = bool(p_cell[cell[1], cell[0]] >= self.spec.exact_above)
+            if exact:
                 self.pmap.visit(cell_to_ned(cell), np.eye(2) * 1e-6)
             else:
                 self.pmap.visit(post.mean_ned[:2], post.horizontal_cov)
+            self.log.exact.append(exact)
             self.log.posterior_sd_m.append(float(np.sqrt(post.horizontal_cov.trace() / 2)))
             self.log.cells.append((int(cell[0]), int(cell[1])))
             self.log.times_s.append(float(t_k))
@@ -311,7 +476,9 @@ class PolicyService:
                 view[2, 1, 1] = 1
             else:
                 self.log.frames += 1
-                view = frame_to_view(frame, cell, g.width, g.height, self.det)
+                # each target lights the one cell its centre is in, the camera taken where the
+                # posterior says (GPS-free offsets; a target straddling windows is one target)
+                view = blobs_to_view(blobs, post.mean_ned[:2], height, cell, g.width, g.height)
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
                 self.last_frame = (move, frame, view[0].astype(int).tolist())
@@ -333,8 +500,7 @@ class PolicyService:
                 t=np.array([move]), active=np.array([True]),
                 # the position posterior over cells: belief-state policies (policy/belief) fold the
                 # view in as an expectation over it, as in the grid world's GPS evaluation
-                position_prob=(None if self.spec.visit_map == "hard"
-                               else self.pmap.current[None].astype(np.float32)),
+                position_prob=None if exact else self.pmap.current[None].astype(np.float32),
             )
             self._expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])

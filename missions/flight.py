@@ -108,11 +108,13 @@ def _truth_sitl(cfg):
         def __init__(self, cfg) -> None:
             super().__init__(cfg)
             self.truth: list[tuple[float, float, float]] = []
+            self.height: list[float] = []  # true height over the field at the same ticks
 
         def step(self) -> None:
             super().step()
             p = self.model.state.position_ned
             self.truth.append((self.t, float(p[0] + self.spawn_ne[0]), float(p[1] + self.spawn_ne[1])))
+            self.height.append(float(-p[2]))
 
     return TruthSitl(cfg)
 
@@ -224,6 +226,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    decision_period_s=spec.decision_period_s, schedule_slips=log.schedule_slips,
                    late_frames=log.late_frames, cells=[list(c) for c in log.cells],
                    offset_from_cell_m=offsets_from_cells(log.times_s, log.cells, truth),
+                   true_height_m=(np.round(np.interp(log.times_s, truth[:, 0], sitl.height[:len(truth)]), 3).tolist()
+                                  if len(truth) and log.times_s else []),
                    nees_mean=cons["nees_mean"], nees_inside_95=cons["inside_95"], nees=cons["nees"],
                    sitl_errors=len(sitl.errors), lockstep=lockstep, lockstep_timeouts=sitl.lockstep_timeouts,
                    targets=int(grid.n_targets), believed_found=len(log.believed_found),

@@ -49,7 +49,7 @@ class Flying:
 
     def _command_model(self, target_est: np.ndarray, yaw: float | None = None, speed: float | None = None) -> None:
         self._velocity_control = False
-        self.model.set_position_target(np.asarray(target_est, float) - self.gps.bias, yaw=yaw, speed=speed)
+        self.model.set_position_target(np.asarray(target_est, float) - self.gps.estimate_error, yaw=yaw, speed=speed)
 
     def _follow_estimate(self) -> None:
         """A new GPS fix moved the estimate: the position controller tracks the OFFBOARD

@@ -123,9 +123,10 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
                 link.send(msg)
 
     def estimate(self) -> np.ndarray:
-        """The autopilot's position estimate: truth plus the GPS error it cannot see (what an
-        EKF fed by this GPS converges to). Targets are flown in this frame, as on a real drone."""
-        return self.model.state.position_ned + self.gps.bias
+        """The autopilot's position estimate: truth plus the error it cannot see (what an EKF
+        fed by this GPS and a barometer converges to: GpsModel.estimate_error). Targets are flown
+        in this frame, as on a real drone."""
+        return self.model.state.position_ned + self.gps.estimate_error
 
     def set_mode(self, mode: str) -> None:
         if mode != self.mode:

@@ -1,5 +1,12 @@
 """A GPS receiver model: white noise on a slowly drifting first-order Gauss-Markov bias, at
-its own rate, with the accuracy figures (eph/epv) a receiver reports. Seeded."""
+its own rate, with the accuracy figures (eph/epv) a receiver reports. Seeded.
+
+It also carries the error of the autopilot's position estimate (`estimate_error`): an EKF fed
+by this receiver converges to the truth plus the receiver's horizontal bias, but holds height
+on its barometer, as PX4's EKF2 does by default (EKF2_HGT_REF: baro), so the vertical error is
+the barometer's slow drift (0.2 m sd), not the receiver's vertical bias (1 m sd). Flying height
+on the GPS's vertical bias moved the true altitude by metres over a flight (1.3 m instead of
+3.5 m seen), which shrinks or widens the camera's footprint by as much."""
 
 from __future__ import annotations
 
@@ -20,11 +27,16 @@ class GpsConfig:
     bias_tau_s: float = 60.0
     sigma_vel: float = 0.1  # m/s
     satellites: int = 12
+    #: the autopilot holds height on a barometer (its drift: Gauss-Markov, sd and tau); False:
+    #: on this receiver's vertical error, as before
+    height_from_baro: bool = True
+    baro_sigma_m: float = 0.2
+    baro_tau_s: float = 60.0
 
     def __post_init__(self) -> None:
-        if self.rate_hz <= 0 or self.bias_tau_s <= 0:
-            raise ValueError("rate_hz and bias_tau_s must be > 0")
-        if min(self.sigma_h, self.sigma_v, self.bias_sigma_h, self.bias_sigma_v, self.sigma_vel) < 0:
+        if self.rate_hz <= 0 or self.bias_tau_s <= 0 or self.baro_tau_s <= 0:
+            raise ValueError("rate_hz, bias_tau_s and baro_tau_s must be > 0")
+        if min(self.sigma_h, self.sigma_v, self.bias_sigma_h, self.bias_sigma_v, self.sigma_vel, self.baro_sigma_m) < 0:
             raise ValueError("noise levels must be >= 0")
 
 
@@ -47,8 +59,23 @@ class GpsModel:
         self.rng = np.random.default_rng([seed, 0x6905])
         c = self.cfg
         self.bias = self.rng.normal(0, [c.bias_sigma_h, c.bias_sigma_h, c.bias_sigma_v])
+        # the barometer's own stream, so the receiver's is the same with or without it
+        self._baro_rng = np.random.default_rng([seed, 0xBA20])
+        self.baro = float(self._baro_rng.normal(0, c.baro_sigma_m))
+        self._set_estimate_error()
         self._next = 0.0
         self._last_t: float | None = None
+
+    def _set_estimate_error(self) -> None:
+        self._estimate_error = (np.array([self.bias[0], self.bias[1], self.baro]) if self.cfg.height_from_baro
+                                else self.bias.copy())
+
+    @property
+    def estimate_error(self) -> np.ndarray:
+        """The autopilot's position-estimate error (north, east, down): the receiver's bias
+        horizontally, the barometer's drift vertically (see the module docstring). Read every
+        tick: computed when the errors change (on a fix), not on every read."""
+        return self._estimate_error
 
     @property
     def eph(self) -> float:
@@ -68,6 +95,9 @@ class GpsModel:
             a = np.exp(-dt / c.bias_tau_s)
             sd = np.array([c.bias_sigma_h, c.bias_sigma_h, c.bias_sigma_v]) * np.sqrt(1 - a * a)
             self.bias = a * self.bias + self.rng.normal(0, sd)
+            ab = np.exp(-dt / c.baro_tau_s)
+            self.baro = float(ab * self.baro + self._baro_rng.normal(0, c.baro_sigma_m * np.sqrt(1 - ab * ab)))
+            self._set_estimate_error()
         self._last_t = time_s
         self._next = time_s + 1.0 / c.rate_hz
         noisy = np.asarray(position_ned, float) + self.bias + self.rng.normal(0, [c.sigma_h, c.sigma_h, c.sigma_v])

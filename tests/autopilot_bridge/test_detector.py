@@ -17,3 +17,35 @@ def test_rendered_cows_become_the_grid_view() -> None:
         assert corner[0, 1, 1] == 1 and corner[1, 0].all() and corner[1][:, 0].all()
     finally:
         r.close()
+
+
+def test_a_target_straddling_cells_lights_the_one_cell_its_centre_is_in() -> None:
+    """The camera truly off its cell's centre by the GPS bias (0.7 m, 0.8 m): the window
+    detector lit 2-3 windows per cow; the blob centroid puts each cow in exactly one cell, and
+    the offsets it measures (GPS-free) are within the calibration's error of the truth."""
+    from autopilot_bridge.detector import blobs_to_view, find_blobs
+    from sim.gridworld import cell_to_ned
+
+    r = ViewRenderer(10, 10, 3, image=50, seed=2)
+    try:
+        targets = np.array([[5.0, 5.0], [6.0, 4.0], [4.0, 6.0]])  # below, north-east, south-west
+        camera = np.array([5.0 + 0.4, 5.0 - 0.35])  # cells (x, y): 0.8 m east, 0.7 m north
+        r.field.set_targets(targets)
+        from sim.vehicle.field import cell_to_enu
+
+        eye = cell_to_enu(camera, 2.0)
+        eye[2] = 3.44
+        blobs = find_blobs(r.camera.render_enu(eye))
+        assert len(blobs) == 3
+        cam_ne = cell_to_ned(camera)
+        true_off = sorted(map(tuple, np.round(cell_to_ned(targets) - cam_ne, 2)))
+        seen_off = sorted(b.offset_ne(3.44) for b in blobs)
+        assert np.abs(np.array(seen_off) - np.array(true_off)).max() < 0.45, (seen_off, true_off)
+        # the camera believed where it truly is: one slot per cow, none doubled
+        view = blobs_to_view(blobs, cam_ne, 3.44, np.array([5, 5]), 10, 10)
+        assert view[0].tolist() == [[0, 0, 1], [0, 1, 0], [1, 0, 0]]
+        # believed 1.2 m east of the truth (a bias not registered): every cow one cell west
+        shifted = blobs_to_view(blobs, cam_ne + np.array([0.0, 1.2]), 3.44, np.array([5, 5]), 10, 10)
+        assert shifted[0].sum() == 2 and shifted[0, 0, 2] == 0
+    finally:
+        r.close()

@@ -114,3 +114,32 @@ def test_bad_input_is_a_clear_error() -> None:
         EstimatorConfig(bias_share=1.0)
     with pytest.raises(ValueError, match="bias_tau_s"):
         EstimatorConfig(bias_tau_s=0.0)
+
+
+def test_a_true_position_measurement_makes_the_gps_bias_observable() -> None:
+    """GPS alone cannot tell the bias from the position; the vehicle standing on its launch
+    point (and later targets on cell centres) measures the position without the bias, so the
+    filter's bias estimate converges to the receiver's, and setpoints shifted by it put the
+    vehicle truly where it is meant to be. doubt_split moves doubt between position and bias
+    without changing the doubt on their sum (what the receiver measures)."""
+    errs = []
+    for seed in range(12):
+        gps = GpsModel(HomePosition(), seed)
+        est = GpsEstimator()
+        for k in range(11):  # 2 s of fixes on the pad, as the service registers the launch
+            t = 0.2 * k
+            fix = gps.sample(t, np.zeros(3), np.zeros(3))
+            est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
+            est.observe_position(t, np.zeros(2), 0.05)
+        errs.append(est.bias_ned[:2] - gps.bias[:2])
+        assert np.abs(est.posterior().mean_ned[:2]).max() < 0.1
+    errs = np.array(errs)
+    assert np.sqrt((errs**2).mean()) < 0.35, errs  # the receiver's white noise, averaged over 11 fixes
+    p = est.kf.P.copy()
+    est.doubt_split(2.0)
+    q = est.kf.P
+    assert q[0, 0] == pytest.approx(p[0, 0] + 4.0) and q[6, 6] == pytest.approx(p[6, 6] + 4.0)
+    total = lambda m: m[0, 0] + m[6, 6] + 2 * m[0, 6]  # noqa: E731 - var(p + b) north
+    assert total(q) == pytest.approx(total(p))
+    with pytest.raises(ValueError):
+        est.observe_position(3.0, np.array([np.nan, 0.0]), 0.1)

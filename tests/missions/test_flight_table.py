@@ -28,6 +28,8 @@ def test_the_same_seed_flies_the_same_search_twice_in_parallel(tmp_path: Path) -
     off = np.array([r["offset_from_cell_m"] for r in reports])
     assert off.shape[1] == 11 and np.abs(off[0] - off[1]).max() < 0.01, "the same true positions"
     assert a["late_frames"] == 0 and a["lockstep_timeouts"] == 0
+    # the autopilot holds height on its barometer (0.2 m drift), not on the GPS's 1 m vertical bias
+    assert np.abs(np.array(reports[0]["true_height_m"]) - 3.5).max() < 0.8, reports[0]["true_height_m"]
     assert a["grid_moves"] >= 1 and a["flight_grid_ratio"] == a["moves"] / a["grid_moves"]
     s = summarise([a, b])
     assert s["flights"] == 2 and s["capped"] in (0, 2) and s["nees_samples"] == 22
