@@ -1,6 +1,8 @@
 """Decision latency at batch 1 on one thread: the search network beside the shipped dual-stream
-network and the `belief` planner (the flight default), measured interleaved on the same states
-(every policy decides on each state in turn, the order rotating), so all see the same load.
+network and the `belief` planner (the flight default), on the same states: the states of
+batch-1 episodes played by searchnet are recorded, then every policy decides on them
+interleaved (each state in turn by every policy, the order rotating, so all see the same load),
+then each alone on the same states (the flight runs one policy: its caches stay warm).
 
 A decision is everything the flight's policy service pays per move: the belief update from the
 observation, the planes, the egocentric window, the forward pass, the mask and the argmax, and
@@ -27,7 +29,7 @@ import time
 import numpy as np
 import torch
 
-from policy.base import Policy, observe
+from policy.base import Observation, Policy, observe
 from policy.baselines.registry import make_policy
 from policy.loops import LoopGuard
 from policy.nn import shipped_checkpoint
@@ -35,6 +37,8 @@ from policy.searchnet import load_searchnet_policy
 from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
 
 GOAL_MS = 1.0
+WARM_UP = 20
+HEADER = f"{'policy':<16}{'field':>7}{'p50':>9}{'p99':>9}{'cpu p50':>9}{'cpu p99':>9}{'r p50':>9}{'r p99':>9}"
 
 
 def policies(cfg: GridConfig) -> dict[str, Policy]:
@@ -46,31 +50,46 @@ def policies(cfg: GridConfig) -> dict[str, Policy]:
     return out
 
 
-def latencies(cfg: GridConfig, decisions: int, seed: int) -> tuple[dict[str, np.ndarray], int]:
-    """{name: (k, 2) seconds (wall, thread CPU)} per decision, batch-1 episodes played to the end
-    in turn; the world follows searchnet's moves. Also the states where searchnet-torch chose
-    another action than searchnet."""
+def record(cfg: GridConfig, decisions: int, seed: int) -> list[tuple[int, list[Observation]]]:
+    """Batch-1 episodes played to the end by searchnet: (episode seed, its observations)."""
+    pol = make_policy("searchnet", cfg)
+    out: list[tuple[int, list[Observation]]] = []
+    total, ep_seed = 0, seed
+    while total < decisions + WARM_UP:
+        pol.reset(cfg, 1, ep_seed, None)
+        world = BatchGridWorld(sample_episodes(cfg, 1, ep_seed), ep_seed)
+        seen: list[Observation] = []
+        while not world.done.all() and total < decisions + WARM_UP:
+            seen.append(observe(world))
+            world.step(pol.act(seen[-1]))
+            total += 1
+        out.append((ep_seed, seen))
+        ep_seed += 1
+    return out
+
+
+def latencies(cfg: GridConfig, episodes: list[tuple[int, list[Observation]]],
+              names: list[str] | None = None) -> tuple[dict[str, np.ndarray], int]:
+    """{name: (k, 2) seconds (wall, thread CPU)} per decision on the recorded states. Several
+    names: interleaved, every policy decides on each state in turn (the order rotating). Also
+    the states where searchnet-torch chose another action than searchnet (when both run)."""
     pols = policies(cfg)
-    names = list(pols)
+    names = names or list(pols)
     ts: dict[str, list[tuple[int, int]]] = {n: [] for n in names}
-    differ, ep_seed, k = 0, seed, 0
-    while len(ts[names[0]]) < decisions + 20:
-        ep = sample_episodes(cfg, 1, ep_seed)
-        for p in pols.values():
-            p.reset(cfg, 1, ep_seed, None)
-        world = BatchGridWorld(ep, ep_seed)
-        while not world.done.all() and len(ts[names[0]]) < decisions + 20:
-            obs = observe(world)
+    differ, k = 0, 0
+    for ep_seed, seen in episodes:
+        for n in names:
+            pols[n].reset(cfg, 1, ep_seed, None)
+        for obs in seen:
             acts = {}
             k += 1
             for n in names[k % len(names):] + names[: k % len(names)]:
                 w0, c0 = time.perf_counter_ns(), time.thread_time_ns()
                 acts[n] = pols[n].act(obs)
                 ts[n].append((time.perf_counter_ns() - w0, time.thread_time_ns() - c0))
-            differ += int(not np.array_equal(acts["searchnet"], acts["searchnet-torch"]))
-            world.step(acts["searchnet"])
-        ep_seed += 1
-    return {n: np.array(v[20:]) / 1e9 for n, v in ts.items()}, differ  # drop the warm-up
+            if "searchnet" in acts and "searchnet-torch" in acts:
+                differ += int(not np.array_equal(acts["searchnet"], acts["searchnet-torch"]))
+    return {n: np.array(v[WARM_UP:]) / 1e9 for n, v in ts.items()}, differ
 
 
 def table(res: dict[str, np.ndarray], field: str) -> list[str]:
@@ -88,21 +107,27 @@ def main() -> None:
     decisions = int(sys.argv[1]) if len(sys.argv) > 1 else 2000
     rounds = int(sys.argv[2]) if len(sys.argv) > 2 else 3
     torch.set_num_threads(1)
-    print(f"decision latency at batch 1, 1 torch thread, {decisions} decisions per policy and round, "
-          f"interleaved; ms; ratios: wall clock / dualstream's on the same states; {os.cpu_count()} CPUs")
+    print(f"decision latency at batch 1, 1 torch thread, {decisions} decisions per policy and round; ms; "
+          f"{os.cpu_count()} CPUs; ratios: wall clock / dualstream's on the same states")
     best = np.inf
     for r in range(rounds):
-        load0 = os.getloadavg()[0]
-        print(f"\nround {r + 1}: load average {load0:.2f} at the start")
-        print(f"{'policy':<16}{'field':>7}{'p50':>9}{'p99':>9}{'cpu p50':>9}{'cpu p99':>9}{'r p50':>9}{'r p99':>9}")
+        print(f"\nround {r + 1}: load average {os.getloadavg()[0]:.2f} at the start")
         for cfg in (GridConfig(), GridConfig(width=20, height=20, n_targets=10)):
-            res, differ = latencies(cfg, decisions, seed=7 + 1000 * r)
-            for line in table(res, f"{cfg.width}x{cfg.height}"):
+            field = f"{cfg.width}x{cfg.height}"
+            episodes = record(cfg, decisions, seed=7 + 1000 * r)
+            res, differ = latencies(cfg, episodes)
+            print(f"interleaved (each state decided by every policy in turn):\n{HEADER}")
+            for line in table(res, field):
                 print(line)
-            print(f"{'':<16}{'':>7}  searchnet and searchnet-torch chose the same action on "
-                  f"{len(res['searchnet']) + 20 - differ}/{len(res['searchnet']) + 20} states")
+            print(f"  searchnet and searchnet-torch chose the same action on {decisions + WARM_UP - differ}/"
+                  f"{decisions + WARM_UP} states")
+            alone = {n: latencies(cfg, episodes, [n])[0][n] for n in res}
+            print(f"alone (one policy at a time on the same states, as the flight runs it):\n{HEADER}")
+            for line in table(alone, field):
+                print(line)
             if (cfg.width, cfg.height) == (10, 10):
-                best = min(best, 1e3 * np.percentile(res["searchnet"][:, 0], 99))
+                best = min(best, 1e3 * np.percentile(res["searchnet"][:, 0], 99),
+                           1e3 * np.percentile(alone["searchnet"][:, 0], 99))
         print(f"load average {os.getloadavg()[0]:.2f} at the end")
     print(f"\nsearchnet 10x10 p99 (wall clock), best round: {best:.3f} ms; goal < {GOAL_MS} ms: "
           f"{'met' if best < GOAL_MS else 'not met'}")
