@@ -15,7 +15,10 @@ the paper's loop guard on static targets (searchnet and dualstream alike). Rows:
 - belief:           the belief planner at batch 1.
 Each is timed by the wall clock (what the flight waits) and by the thread's CPU time (what the
 decision costs; preemption by other processes on a shared machine inflates only the wall clock).
-The machine's load average is printed with every round. Goal (issue 11): searchnet p99 < 1 ms.
+"p99 np" is the wall-clock p99 over the decisions during which the thread was not preempted
+(no involuntary context switch, getrusage), "preempt%" the share that were: on a shared,
+loaded machine the plain p99 measures the other tenants' time slices. The machine's load
+average is printed with every round. Goal (issue 11): searchnet p99 < 1 ms.
 
     python benchmarks/bench_searchnet.py [decisions per round (2000)] [rounds (3)]
 """
@@ -23,6 +26,7 @@ The machine's load average is printed with every round. Goal (issue 11): searchn
 from __future__ import annotations
 
 import os
+import resource
 import sys
 import time
 
@@ -38,7 +42,8 @@ from sim.gridworld import BatchGridWorld, GridConfig, sample_episodes
 
 GOAL_MS = 1.0
 WARM_UP = 20
-HEADER = f"{'policy':<16}{'field':>7}{'p50':>9}{'p99':>9}{'cpu p50':>9}{'cpu p99':>9}{'r p50':>9}{'r p99':>9}"
+HEADER = (f"{'policy':<16}{'field':>7}{'p50':>9}{'p99':>9}{'cpu p50':>9}{'cpu p99':>9}{'r p50':>8}{'r p99':>8}"
+          f"{'p99 np':>9}{'preempt%':>8}")
 
 
 def policies(cfg: GridConfig) -> dict[str, Policy]:
@@ -70,7 +75,9 @@ def record(cfg: GridConfig, decisions: int, seed: int) -> list[tuple[int, list[O
 
 def latencies(cfg: GridConfig, episodes: list[tuple[int, list[Observation]]],
               names: list[str] | None = None) -> tuple[dict[str, np.ndarray], int]:
-    """{name: (k, 2) seconds (wall, thread CPU)} per decision on the recorded states. Several
+    """{name: (k, 3) (wall s, thread CPU s, 1 if the thread was preempted during the decision
+    (an involuntary context switch: another process took the CPU))} per decision on the
+    recorded states. Several
     names: interleaved, every policy decides on each state in turn (the order rotating). Also
     the states where searchnet-torch chose another action than searchnet (when both run)."""
     pols = policies(cfg)
@@ -84,9 +91,12 @@ def latencies(cfg: GridConfig, episodes: list[tuple[int, list[Observation]]],
             acts = {}
             k += 1
             for n in names[k % len(names):] + names[: k % len(names)]:
+                s0 = resource.getrusage(resource.RUSAGE_THREAD).ru_nivcsw
                 w0, c0 = time.perf_counter_ns(), time.thread_time_ns()
                 acts[n] = pols[n].act(obs)
-                ts[n].append((time.perf_counter_ns() - w0, time.thread_time_ns() - c0))
+                w1, c1 = time.perf_counter_ns(), time.thread_time_ns()
+                preempted = resource.getrusage(resource.RUSAGE_THREAD).ru_nivcsw - s0
+                ts[n].append((w1 - w0, c1 - c0, 1e9 * (preempted > 0)))
             if "searchnet" in acts and "searchnet-torch" in acts:
                 differ += int(not np.array_equal(acts["searchnet"], acts["searchnet-torch"]))
     return {n: np.array(v[WARM_UP:]) / 1e9 for n, v in ts.items()}, differ
@@ -96,10 +106,13 @@ def table(res: dict[str, np.ndarray], field: str) -> list[str]:
     ref = res.get("dualstream")
     rows = []
     for n, t in res.items():
-        q = 1e3 * np.percentile(t, [50, 99], axis=0)  # (p50, p99) x (wall, cpu), ms
+        q = 1e3 * np.percentile(t[:, :2], [50, 99], axis=0)  # (p50, p99) x (wall, cpu), ms
+        kept = t[t[:, 2] == 0, 0]
+        p99_np = 1e3 * np.percentile(kept, 99) if len(kept) else np.nan
         r50 = f"{q[0, 0] / (1e3 * np.percentile(ref[:, 0], 50)):.2f}" if ref is not None else "-"
         r99 = f"{q[1, 0] / (1e3 * np.percentile(ref[:, 0], 99)):.2f}" if ref is not None else "-"
-        rows.append(f"{n:<16}{field:>7}{q[0, 0]:9.3f}{q[1, 0]:9.3f}{q[0, 1]:9.3f}{q[1, 1]:9.3f}{r50:>9}{r99:>9}")
+        rows.append(f"{n:<16}{field:>7}{q[0, 0]:9.3f}{q[1, 0]:9.3f}{q[0, 1]:9.3f}{q[1, 1]:9.3f}{r50:>8}{r99:>8}"
+                    f"{p99_np:9.3f}{100 * t[:, 2].mean():8.1f}")
     return rows
 
 
@@ -109,7 +122,7 @@ def main() -> None:
     torch.set_num_threads(1)
     print(f"decision latency at batch 1, 1 torch thread, {decisions} decisions per policy and round; ms; "
           f"{os.cpu_count()} CPUs; ratios: wall clock / dualstream's on the same states")
-    best = np.inf
+    best = {"wall": np.inf, "cpu": np.inf, "not preempted": np.inf}
     for r in range(rounds):
         print(f"\nround {r + 1}: load average {os.getloadavg()[0]:.2f} at the start")
         for cfg in (GridConfig(), GridConfig(width=20, height=20, n_targets=10)):
@@ -126,11 +139,13 @@ def main() -> None:
             for line in table(alone, field):
                 print(line)
             if (cfg.width, cfg.height) == (10, 10):
-                best = min(best, 1e3 * np.percentile(res["searchnet"][:, 0], 99),
-                           1e3 * np.percentile(alone["searchnet"][:, 0], 99))
+                t = alone["searchnet"]
+                for key, v in (("wall", t[:, 0]), ("cpu", t[:, 1]), ("not preempted", t[t[:, 2] == 0, 0])):
+                    best[key] = min(best[key], 1e3 * np.percentile(v, 99))
         print(f"load average {os.getloadavg()[0]:.2f} at the end")
-    print(f"\nsearchnet 10x10 p99 (wall clock), best round: {best:.3f} ms; goal < {GOAL_MS} ms: "
-          f"{'met' if best < GOAL_MS else 'not met'}")
+    print(f"\nsearchnet 10x10 alone, best round's p99 (goal < {GOAL_MS} ms): wall clock {best['wall']:.3f} ms, "
+          f"thread CPU time {best['cpu']:.3f} ms, wall clock over the decisions not preempted "
+          f"{best['not preempted']:.3f} ms (biased to the shorter ones where many were preempted)")
 
 
 if __name__ == "__main__":
