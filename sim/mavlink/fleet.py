@@ -4,7 +4,9 @@ Each vehicle is a full `Sitl` (its own MAVLink system id, PX4 SITL's ports for i
 GPS, field and camera, tlog), but the airframes are members of one fleet (sim/vehicle/fleet.py):
 one physics step and one vectorised controller for all, then every vehicle's MAVLink tick. One
 loop paces the lot at the speed-up and answers any vehicle's messages as they arrive.
-Telemetry streams are each vehicle's own, paced as a lone vehicle paces them.
+Telemetry streams are each vehicle's own, paced as a lone vehicle paces them; the messages a
+vehicle streams in one tick go out as one datagram per link (several MAVLink packets back to
+back, as ArduPilot SITL sends them), which roughly halves a 100-vehicle fleet's CPU per tick.
 """
 
 from __future__ import annotations
@@ -47,6 +49,8 @@ class SitlFleet(BackgroundRunner):
         except Exception:
             self._close()
             raise
+        for s in self.sitls:  # each tick's telemetry of a vehicle in one datagram per link
+            s.vehicle.batch_streams = True
         self._owner = {link.sock: s for s in self.sitls for link in s.vehicle.links}
         self._owner_fd = {sock.fileno(): s for sock, s in self._owner.items()}
         self._poller = select.epoll() if hasattr(select, "epoll") else select.poll()

@@ -41,7 +41,16 @@ class Streams:
 
     def _stream(self) -> None:
         if self.t + 1e-9 >= self._stream_next:  # most ticks nothing is due: one comparison
-            self._send_due_streams()
+            if self.batch_streams:  # a fleet's vehicle: this tick's telemetry in one datagram per link
+                for link in self.links:
+                    link.begin_batch()
+                try:
+                    self._send_due_streams()
+                finally:
+                    for link in self.links:
+                        link.end_batch()
+            else:
+                self._send_due_streams()
         if self._frame_times and self.t + 1e-9 >= self._frame_times[0]:
             due = self._frame_times.pop(0)
             # a capture asked for again (its frame lost on the way) gets the same stamped

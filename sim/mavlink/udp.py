@@ -68,6 +68,7 @@ class UdpLink:
         self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
         self.mav.robust_parsing = True
         self.stats = LinkStats()
+        self._batch: list[bytes] | None = None  # packets held for one datagram (begin_batch)
         self.on_bytes = on_bytes  # (raw packet, outgoing) -> None, for the tlog
         self.log_outgoing = log_outgoing  # several links send the same stream: log it once
         if signing_key is not None:
@@ -94,14 +95,30 @@ class UdpLink:
             buf = wire.frame(msg, wire.payload(msg) if body is None else body, mav.seq, mav.srcSystem,
                              mav.srcComponent)
         mav.seq = (mav.seq + 1) & 0xFF
+        self.stats.sent += 1
+        if self.on_bytes and self.log_outgoing:
+            self.on_bytes(bytes(buf), True)
+        if self._batch is not None:
+            self._batch.append(buf)
+            return
+        self._sendto_peers(buf)
+
+    def _sendto_peers(self, buf: bytes) -> None:
         for peer in self.peers:
             try:
                 self.sock.sendto(buf, peer)
             except OSError:
                 continue
-        self.stats.sent += 1
-        if self.on_bytes and self.log_outgoing:
-            self.on_bytes(bytes(buf), True)
+
+    def begin_batch(self) -> None:
+        """Hold what is sent until end_batch(), then send it as one datagram (several MAVLink
+        packets back to back, as ArduPilot SITL sends them; every MAVLink parser reads them)."""
+        self._batch = []
+
+    def end_batch(self) -> None:
+        batch, self._batch = self._batch, None
+        if batch:
+            self._sendto_peers(b"".join(batch))
 
     def poll(self) -> list[mavlink.MAVLink_message]:
         out = []
