@@ -64,9 +64,12 @@ class ParamStore:
         self.params = default_params()
         self.params["UAVS_SIGNING"].value = float(signing)
         self.names = list(self.params)
+        #: name -> value: what every vehicle reads several times a tick (one dict lookup);
+        #: set() is the only way a value changes, and it updates both
+        self.values = {name: p.value for name, p in self.params.items()}
 
     def __getitem__(self, name: str) -> float:
-        return self.params[name].value
+        return self.values[name]
 
     def set(self, name: str, value: float) -> tuple[bool, str]:
         p = self.params.get(name)
@@ -80,7 +83,7 @@ class ParamStore:
             return False, f"{name}={value} is not one of {list(p.values)}"
         if name.startswith(LOCKED_WHEN_ARMED) and self.armed() and value != p.value:
             return False, f"{name} cannot change while armed"
-        p.value = float(value)
+        p.value = self.values[name] = float(value)
         return True, ""
 
     def index(self, name: str) -> int:
