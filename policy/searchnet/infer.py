@@ -189,7 +189,7 @@ class FastSearchNet:
         buf = self.buffers(h, w)
         if planes is not buf.planes:
             buf.planes[:] = planes
-        x, y = np.asarray(positions).reshape(2).tolist()
+        x, y = np.asarray(positions, dtype=np.int64).reshape(2).tolist()
         pad = buf.pad
         # the response's row j lands on window row j + h - 2 - y (its first row and column may
         # fall outside the window; the base is 0 there and they are not copied)
