@@ -66,21 +66,36 @@ class PlannerParams:
                 raise ValueError(f"PlannerParams.{k} must be >= 0 (got {getattr(self, k)})")
 
 
-def _window(a: np.ndarray, radius: int) -> np.ndarray:
+def _window(a: np.ndarray, radius: int, work: dict | None = None) -> np.ndarray:
     """Sum of a (n, h, w) over the (2r+1)^2 window centred on each cell (zero outside).
 
-    The shifted copies (_shift(a, dy, dx)) are read as slices of one zero-padded copy instead
-    of being built one by one, and added in the same order: the same sums bit for bit, without
-    (2r + 1)^2 fresh arrays per call (half the planner's batched step went there)."""
+    The shifted copies (_shift(a, dy, dx)) are added in the same order as ever, so the sums
+    (and the planner's decisions) are the same bit for bit; but they are read from one
+    zero-padded copy of a, flattened: shifting by (dy, dx) is then an offset of dy * W + dx in
+    one contiguous run, and each addition is one contiguous (vectorised) pass instead of a
+    fresh shifted array. Cells of the padding pick up neighbouring rows' values and are dropped.
+    work: a dict to keep the two padded buffers in between calls (fresh large arrays cost page
+    faults on every call); their borders are never written, so they stay zero."""
     h, w = a.shape[-2:]
     r = radius
-    padded = np.zeros(a.shape[:-2] + (h + 2 * r, w + 2 * r), a.dtype)
+    hp, wp = h + 2 * r, w + 2 * r
+    key = (a.shape, a.dtype.str, r)
+    if work is None or key not in work:
+        bufs = (np.zeros(a.shape[:-2] + (hp, wp), a.dtype), np.empty(a.size // (h * w) * hp * wp, a.dtype))
+        if work is not None:
+            work[key] = bufs
+    else:
+        bufs = work[key]
+    padded, acc = bufs
     padded[..., r: r + h, r: r + w] = a
-    out = np.zeros_like(a)
+    flat = padded.reshape(-1)
+    acc.fill(0.0)
+    lo, hi = r * wp + r, flat.size - (r * wp + r)  # every kept cell's flat index lies in [lo, hi)
     for dy in range(-r, r + 1):
         for dx in range(-r, r + 1):
-            out += padded[..., r - dy: r - dy + h, r - dx: r - dx + w]  # == _shift(a, dy, dx)
-    return out
+            off = dy * wp + dx  # out[y, x] += a[y - dy, x - dx]
+            acc[lo:hi] += flat[lo - off: hi - off]
+    return acc.reshape(padded.shape)[..., r: r + h, r: r + w].copy()
 
 
 def resolve_prior(prior: Any, cfg: GridConfig) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -135,6 +150,7 @@ class BeliefPlanner(Policy):
             cy, cx = np.divmod(np.arange(h * w), w)
             self._herd = g[cy[None, :] - cy[:, None] + h - 1, cx[None, :] - cx[:, None] + w - 1].astype(np.float32)
         self.rng = np.random.default_rng([seed, 0xBE11EF])
+        self._work: dict = {}  # _window's buffers
         self.rows = np.arange(n)
         h, w = cfg.height, cfg.width
         self.ys, self.xs = np.mgrid[0:h, 0:w]
@@ -160,9 +176,9 @@ class BeliefPlanner(Policy):
         else:
             mass = b.target - b.sighted  # the prior-spread pool over unseen cells
         mass = mass * self.cell_weight
-        near = _window(mass, 1)
+        near = _window(mass, 1, self._work)
         if p.outer > 0:
-            near = near + p.outer * (_window(mass, 2) - near)
+            near = near + p.outer * (_window(mass, 2, self._work) - near)
         return near
 
     def _goal(self, pos: np.ndarray) -> np.ndarray:
