@@ -66,8 +66,13 @@ def compare(before: dict, after: dict, setting: dict, n: int) -> tuple[np.ndarra
 def main() -> None:
     rev = sys.argv[1] if len(sys.argv) > 1 else "6eae5f2"
     with tempfile.TemporaryDirectory() as tmp:
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "policy", "sim", "provenance"],
-                                 check=True, capture_output=True).stdout
+        got = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "policy", "sim", "provenance"],
+                             capture_output=True)
+        if got.returncode != 0:  # e.g. a shallow clone: nothing to compare against, say so
+            print(f"revision {rev} is not in this checkout ({got.stderr.decode().strip()}); "
+                  "give one that is: python benchmarks/bench_planner_step.py REV")
+            return
+        archive = got.stdout
         subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
         before = _load(Path(tmp))
         after = _load(ROOT)
