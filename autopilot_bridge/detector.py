@@ -79,6 +79,12 @@ K_PX_M, TOP_M = 21.75, 0.94
 #: a blob cut by the frame's edge has its centroid pulled inwards: its target lies about this
 #: much further out along the cut axis (rendered: 0.2 m rms after the shift, max 0.45 m)
 EDGE_PUSH_M = 0.35
+#: a blob cut by the frame's edge whose nearest pixel is further than this from the nadir
+#: (the larger of the two axes, m) is a target two cells away whose near end shows: rendered,
+#: the cut blobs of targets in the 3 x 3 window reach in to 1.9 m at most, those two cells
+#: away 2.0 m at least (it was read as a neighbour: the planner stepped back and forth
+#: between two cells chasing it, the demo's moves 29-40)
+EDGE_BEYOND_M = 1.95
 #: smaller blobs are specks (a leg at the frame's edge, rendering noise): ignored
 MIN_BLOB_PX = 4
 #: the camera hangs this far below the airframe's reference point (sim.vehicle.camera)
@@ -100,6 +106,8 @@ class Blob:
     pixels: int
     cut: tuple[bool, bool, bool, bool]  # north, south, west, east
     width_px: int = 50
+    #: the blob's pixel nearest the frame's centre: its distance, the larger of the two axes
+    inner_px: float = 0.0
 
     @property
     def at_edge(self) -> bool:
@@ -108,7 +116,11 @@ class Blob:
     @property
     def sd_m(self) -> float:
         """Standard deviation of the offset per axis (the calibration's rms, widened at edges)."""
-        return 0.3 if self.at_edge else 0.2
+        return 0.4 if self.at_edge else 0.3
+
+    def beyond_view(self, camera_height_m: float) -> bool:
+        """A target two cells away whose near end shows at the frame's edge (EDGE_BEYOND_M)."""
+        return self.at_edge and self.inner_px / px_per_m(camera_height_m, self.width_px) > EDGE_BEYOND_M
 
     def offset_ne(self, camera_height_m: float) -> tuple[float, float]:
         """The target's offset from the camera's nadir (north, east metres): GPS-free."""
@@ -134,10 +146,14 @@ def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> lis
     sizes = ndimage.sum_labels(off, lab, idx)
     centres = ndimage.center_of_mass(off, lab, idx)
     out = []
-    for size, (cy, cx), (ys, xs) in zip(sizes, centres, ndimage.find_objects(lab), strict=True):
+    for i, (size, (cy, cx), (ys, xs)) in enumerate(zip(sizes, centres, ndimage.find_objects(lab), strict=True)):
         if size >= MIN_BLOB_PX:
-            out.append(Blob(float(cy - (h - 1) / 2), float(cx - (w - 1) / 2), int(size),
-                            (ys.start == 0, ys.stop == h, xs.start == 0, xs.stop == w), w))
+            cut = (ys.start == 0, ys.stop == h, xs.start == 0, xs.stop == w)
+            inner = 0.0
+            if any(cut):  # only cut blobs need it
+                py, px = np.nonzero(lab[ys, xs] == i + 1)
+                inner = float(np.min(np.maximum(np.abs(py + ys.start - (h - 1) / 2), np.abs(px + xs.start - (w - 1) / 2))))
+            out.append(Blob(float(cy - (h - 1) / 2), float(cx - (w - 1) / 2), int(size), cut, w, inner))
     return out
 
 
@@ -156,12 +172,14 @@ def blob_cells(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: float,
 def blobs_to_view(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: float, cell: np.ndarray,
                   width: int, height: int) -> np.ndarray:
     """The (3, 3, 3) uint8 view {target, off-map, agent} around `cell` from the blobs' cells
-    (each target lights exactly one slot; targets outside the 3 x 3 window are not shown)."""
+    (each target lights exactly one slot; targets outside the 3 x 3 window, and edge blobs of
+    targets two cells away, are not shown)."""
     dy, dx = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
     ys, xs = cell[1] + dy, cell[0] + dx
     inside = (ys >= 0) & (ys < height) & (xs >= 0) & (xs < width)
     view = np.zeros((3, 3, 3), dtype=np.uint8)
-    for x, y in blob_cells(blobs, camera_ne, camera_height_m):
+    near = [b for b in blobs if not b.beyond_view(camera_height_m)]
+    for x, y in blob_cells(near, camera_ne, camera_height_m):
         r, c = y - int(cell[1]) + 1, x - int(cell[0]) + 1
         if 0 <= r < 3 and 0 <= c < 3 and inside[r, c]:
             view[0, r, c] = 1

@@ -364,6 +364,8 @@ class PolicyService:
         cell_m = 2.0
         height = self.camera_height()
         for b in sorted(blobs, key=lambda b: b.sd_m):
+            if b.beyond_view(height):
+                continue
             post = self.estimator.posterior(t)
             mean = post.mean_ned[:2]
             offset = np.asarray(b.offset_ne(height))

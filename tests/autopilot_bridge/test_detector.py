@@ -49,3 +49,27 @@ def test_a_target_straddling_cells_lights_the_one_cell_its_centre_is_in() -> Non
         assert shifted[0].sum() == 2 and shifted[0, 0, 2] == 0
     finally:
         r.close()
+
+
+def test_the_near_end_of_a_target_two_cells_away_is_not_a_neighbour() -> None:
+    """A cow two cells north shows its near end at the frame's top edge; read as a neighbour,
+    the planner stepped back and forth chasing it (the demo's moves 29-40)."""
+    from autopilot_bridge.detector import blobs_to_view, find_blobs
+    from sim.gridworld import cell_to_ned
+
+    r = ViewRenderer(10, 10, 1, image=50, seed=3)
+    try:
+        seen_far = 0
+        for heading in np.linspace(-np.pi, np.pi, 8, endpoint=False):
+            r.field.set_targets(np.array([[5.0, 3.0]]), np.array([heading]))
+            blobs = find_blobs(r.render_view(WorldState(10, 10, np.array([[5.0, 3.0]])), np.array([5, 5])))
+            seen_far += len(blobs)
+            assert all(b.beyond_view(3.44) for b in blobs), [(b.row, b.col, b.inner_px) for b in blobs]
+            view = blobs_to_view(blobs, cell_to_ned(np.array([5.0, 5.0])), 3.44, np.array([5, 5]), 10, 10)
+            assert not view[0].any()
+        assert seen_far >= 2  # its near end does show in some headings
+        r.field.set_targets(np.array([[5.0, 4.0]]), np.array([0.0]))  # a neighbour is kept
+        blobs = find_blobs(r.render_view(WorldState(10, 10, np.array([[5.0, 4.0]])), np.array([5, 5])))
+        assert len(blobs) == 1 and not blobs[0].beyond_view(3.44)
+    finally:
+        r.close()
