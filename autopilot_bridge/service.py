@@ -221,8 +221,11 @@ class PolicyService:
 
     def fuse_until(self, t: float) -> None:
         """Fuse the received fixes stamped up to simulated time t, in order; later ones wait,
-        so the posterior at a decision does not depend on how fast the link delivered. The
-        receiver's last fix before t is waited for a little (it may trail the frame)."""
+        so the posterior at a decision does not depend on how fast the link delivered. A fix
+        stamped within half a fix period of t is left for the next decision: whether it has
+        arrived with the frame of t is a race (the vehicle may hold its clock at t for the
+        companion before or after sending it); the one before is waited for a little."""
+        t = t - FIX_PERIOD_S / 2
         try:
             self.link.wait_for(lambda: self._last_gps_t > t - FIX_PERIOD_S + 1e-6, 0.5, "")
         except LinkError:
