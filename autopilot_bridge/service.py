@@ -249,13 +249,11 @@ class PolicyService:
     def _settled_at(self, t: float, local_ne: np.ndarray) -> bool:
         """Settled on the setpoint at simulated time t, by the autopilot's latest telemetry
         stamped up to t (deterministic given the trajectory, unless the link lost it)."""
-        sample = None
-        for x in reversed(list(self._local)):  # newest first: t is usually recent
-            if x[0] <= t + 1e-6:
-                sample = x if x[0] >= t - SETTLED_LOOKBACK_S else None
-                break
-        if sample is None:
+        # the latest by its stamp, not by arrival: a reordering radio delivers samples late
+        window = [x for x in list(self._local) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
+        if not window:
             return False
+        sample = max(window, key=lambda x: x[0])
         _, n, e, vn, ve = sample
         near_m = max(self.spec.arrive_m, SETTLED_M)
         return bool(np.hypot(n - local_ne[0], e - local_ne[1]) < near_m and np.hypot(vn, ve) < SETTLED_SPEED)
