@@ -194,6 +194,26 @@ class GpsEstimator:
         is off by, so a setpoint shifted by it puts the vehicle truly where it is meant to be."""
         return self.kf.x[6:9].copy() if self._t is not None else np.zeros(3)
 
+    def reading_ne(self, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Position + bias (north, east): where the receiver (and the autopilot that flies on
+        it) puts the vehicle, with its variance per axis. GPS measures this sum directly, so it
+        stays well known (~0.15 m) whatever the split into position and bias; two readings
+        of one spot differ only by the bias's drift in between (`drift_var`)."""
+        if self._t is None:
+            raise RuntimeError("no GPS fix fused yet")
+        x, p = self.kf.x, self.kf.P
+        if t is not None and t > self._t:
+            f, q = self._step(t - self._t)
+            x, p = f @ x, f @ p @ f.T + q
+        h = np.zeros((2, 9))
+        h[[0, 1], [0, 1]] = 1.0
+        h[[0, 1], [6, 7]] = 1.0
+        return h @ x, np.diag(h @ p @ h.T).copy()
+
+    def drift_var(self, dt: float) -> np.ndarray:
+        """Variance (north, east) of the bias's change over dt seconds (Gauss-Markov)."""
+        return 2.0 * self._bias_var[:2] * (1.0 - math.exp(-abs(dt) / self.cfg.bias_tau_s))
+
     def posterior(self, t: float | None = None) -> PositionPosterior:
         """The posterior of the true position now, or predicted forward to time t (without
         changing the filter)."""

@@ -73,3 +73,50 @@ def test_the_near_end_of_a_target_two_cells_away_is_not_a_neighbour() -> None:
         assert len(blobs) == 1 and not blobs[0].beyond_view(3.44)
     finally:
         r.close()
+
+
+def test_two_cows_touching_head_to_rump_across_a_cell_border_are_two_targets() -> None:
+    """A cow is 1.75 m long head to tail on a 2 m lattice and its back is magnified 1.4x: one
+    heading into the next cell touches its neighbour in the frame. Read as one blob (one
+    centroid 1.4 m out), the cow below was never found (flight seed 11: 2.7x the grid world's
+    moves) or was found twice."""
+    from autopilot_bridge.detector import find_blobs
+    from sim.gridworld import cell_to_ned
+    from sim.vehicle.field import cell_to_enu
+
+    targets = np.array([[5.0, 5.0], [6.0, 5.0]])
+    # different coats (brown, white): head to head (the heads overlap by 0.1 m) or head to
+    # rump. Not yet: two cows of one coat that touch stay one blob (a quarter of such pairs)
+    for seed, all_headings in ((0, ((0.0, np.pi), (0.0, 0.0))),):
+        r = ViewRenderer(10, 10, 2, image=50, seed=seed)
+        try:
+            for headings in all_headings:  # the first heads east, into the second
+                r.field.set_targets(targets, np.array(headings))
+                for camera in (np.array([5.0, 5.0]), np.array([5.1, 4.9])):
+                    eye = cell_to_enu(camera, 2.0)
+                    eye[2] = 3.44
+                    blobs = find_blobs(r.camera.render_enu(eye))
+                    seen = sorted((b.offset_ne(3.44) for b in blobs), key=lambda v: v[1])  # west to east
+                    true = sorted(map(tuple, cell_to_ned(targets) - cell_to_ned(camera)), key=lambda v: v[1])
+                    assert len(blobs) == 2, (seed, r.field.coats, headings, seen)
+                    assert np.abs(np.array(seen) - np.array(true)).max() < 0.5, (seen, true)
+        finally:
+            r.close()
+
+
+def test_a_single_cow_stays_one_target_whatever_its_heading() -> None:
+    """The erosion that parts touching cows must not cut a cow's head off at the neck."""
+    from autopilot_bridge.detector import find_blobs
+    from sim.vehicle.field import cell_to_enu
+
+    rng = np.random.default_rng(5)
+    for seed in range(3):
+        r = ViewRenderer(10, 10, 1, image=50, seed=seed)
+        try:
+            for _ in range(20):
+                r.field.set_targets(np.array([[5.0, 5.0]]), rng.uniform(-np.pi, np.pi, 1))
+                eye = cell_to_enu(np.array([5.0, 5.0]) + rng.uniform(-0.5, 0.5, 2), 2.0)
+                eye[2] = 3.44
+                assert len(find_blobs(r.camera.render_enu(eye))) == 1, r.field.coats
+        finally:
+            r.close()

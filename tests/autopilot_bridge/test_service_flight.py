@@ -16,7 +16,9 @@ def test_policy_service_flies_a_search_and_lands(tmp_path: Path) -> None:
     assert r["error"] is None, r["error"]
     assert 1 <= r["moves"] <= 25
     assert r["frames"] == r["moves"] + 1 and r["frames_missing"] == 0, "one camera frame per decision"
-    assert r["believed_found"] <= r["truly_found"] + 1, "the detector does not hallucinate targets"
+    # a target is found once, under the camera: seen again from the next cell with the posterior
+    # a metre off it was counted twice (20 flights: every flight believed 5/5, 84 % truly found)
+    assert r["believed_found"] <= r["truly_found"], "no target found twice or where the camera is not"
     log = json.loads((tmp_path / "search_log.json").read_text())
     steps = [abs(a[0] - b[0]) + abs(a[1] - b[1]) for a, b in zip(log["cells"], log["cells"][1:], strict=False)]
     assert set(steps) == {1}, "one grid move per decision"
