@@ -68,3 +68,49 @@ def test_batch_render_shapes(renderer) -> None:
     out = renderer.render_views(tg, np.array([[1, 1], [0, 0]]), 10, 10)
     assert out.shape == (2, 3, 50, 50) and out.dtype == np.uint8
     assert not np.array_equal(out[0], out[1])
+
+
+def _reference_fixes(home: HomePosition, seed: int, cfg: GpsConfig, times: np.ndarray, pos: np.ndarray,
+                     vel: np.ndarray) -> list:
+    """The receiver as first written (three rng.normal calls a fix, scales as lists): the
+    shipped one draws once a fix and must give the same numbers."""
+    rng = np.random.default_rng([seed, 0x6905])
+    bias = rng.normal(0, [cfg.bias_sigma_h, cfg.bias_sigma_h, cfg.bias_sigma_v])
+    baro_rng = np.random.default_rng([seed, 0xBA20])
+    baro = float(baro_rng.normal(0, cfg.baro_sigma_m))
+    out, nxt, last = [], 0.0, None
+    for t, p, v in zip(times, pos, vel, strict=True):
+        if t + 1e-9 < nxt:
+            out.append(None)
+            continue
+        if last is not None:
+            a = np.exp(-(t - last) / cfg.bias_tau_s)
+            sd = np.array([cfg.bias_sigma_h, cfg.bias_sigma_h, cfg.bias_sigma_v]) * np.sqrt(1 - a * a)
+            bias = a * bias + rng.normal(0, sd)
+            ab = np.exp(-(t - last) / cfg.baro_tau_s)
+            baro = float(ab * baro + baro_rng.normal(0, cfg.baro_sigma_m * np.sqrt(1 - ab * ab)))
+        last, nxt = t, t + 1.0 / cfg.rate_hz
+        noisy = p + bias + rng.normal(0, [cfg.sigma_h, cfg.sigma_h, cfg.sigma_v])
+        err = np.array([bias[0], bias[1], baro]) if cfg.height_from_baro else bias.copy()
+        out.append((home.ned_to_geodetic(noisy), v + rng.normal(0, cfg.sigma_vel, 3), err))
+    return out
+
+
+@pytest.mark.parametrize("cfg", [GpsConfig(), GpsConfig(rate_hz=10.0, sigma_h=0.0, bias_sigma_v=0.0, sigma_vel=0.0),
+                                 GpsConfig(rate_hz=1.0, height_from_baro=False, bias_tau_s=5.0)])
+def test_gps_fixes_are_the_same_numbers_as_the_three_draw_receiver(cfg: GpsConfig) -> None:
+    home = HomePosition()
+    rng = np.random.default_rng(7)
+    times = np.cumsum(rng.uniform(0.005, 0.05, 2000))  # uneven ticks: dt varies from fix to fix
+    pos, vel = rng.normal(0, 30, (2000, 3)), rng.normal(0, 3, (2000, 3))
+    gps = GpsModel(home, seed=11, cfg=cfg)
+    ref = _reference_fixes(home, 11, cfg, times, pos, vel)
+    fixes = 0
+    for t, p, v, r in zip(times, pos, vel, ref, strict=True):
+        f = gps.sample(float(t), p, v)
+        assert (f is None) == (r is None)
+        if f is not None:
+            fixes += 1
+            assert (f.lat_deg, f.lon_deg, f.alt_m) == r[0]
+            assert np.array_equal(f.vel_ned, r[1]) and np.array_equal(gps.estimate_error, r[2])
+    assert fixes > 40
