@@ -34,7 +34,9 @@ def test_two_mavsdk_clients_fly_two_of_sixteen_vehicles_at_once() -> None:
             await act.arm()
             await act.set_takeoff_altitude(3.0)
             await act.takeoff()
-            await _until(lambda: _true(-sitl.vehicle.estimate()[2] > 2.7), 30, f"vehicle {i} climbed")
+            # the take-off ends 0.3 m short of 3 m (PX4's acceptance), and the vehicle holds there:
+            # about 2.7 m by its estimate: waiting for 2.7 m raced the barometer's drift (1 run in 3 timed out)
+            await _until(lambda: _true(-sitl.vehicle.estimate()[2] > 2.4), 30, f"vehicle {i} climbed")
             lat, lon, alt = sitl.home.ned_to_geodetic(np.array([north, east, -3.0]))
             await act.goto_location(lat, lon, alt, 0.0)
             await _until(lambda: _true(_dist(sitl, north, east) < 1.5), 40, f"vehicle {i} at its goal")
