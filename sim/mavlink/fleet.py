@@ -4,9 +4,14 @@ Each vehicle is a full `Sitl` (its own MAVLink system id, PX4 SITL's ports for i
 GPS, field and camera, tlog), but the airframes are members of one fleet (sim/vehicle/fleet.py):
 one physics step and one vectorised controller for all, then every vehicle's MAVLink tick. One
 loop paces the lot at the speed-up and answers any vehicle's messages as they arrive.
-Telemetry streams are each vehicle's own, paced as a lone vehicle paces them; the messages a
-vehicle streams in one tick go out as one datagram per link (several MAVLink packets back to
-back, as ArduPilot SITL sends them), which roughly halves a 100-vehicle fleet's CPU per tick.
+- Quiet ticks (quiet.py): a vehicle whose tick would change nothing but its battery (most
+  ticks of a hovering or cruising vehicle) is stepped with numpy over the fleet; the others,
+  and every vehicle that received something, take the full tick.
+- Telemetry streams are each vehicle's own, paced as a lone vehicle paces them, but built for
+  all vehicles at once (fleet_telemetry.py); the messages a vehicle streams in one tick go out
+  as one datagram per link (several MAVLink packets back to back, as ArduPilot SITL sends them).
+Both give the same bytes and the same flight as every vehicle ticked in full and building its
+own telemetry (`quiet_ticks=False, vector_telemetry=False`; tests/sim/mavlink/test_quiet.py).
 """
 
 from __future__ import annotations
@@ -20,6 +25,8 @@ from collections.abc import Sequence
 
 from sim.vehicle.fleet import KinematicFleet, QuadrotorFleet
 
+from .fleet_telemetry import FleetTelemetry
+from .quiet import QuietFleet
 from .runner import BackgroundRunner, pace
 from .sitl import TICK_S, Sitl, SitlConfig
 
@@ -30,7 +37,9 @@ class SitlFleet(BackgroundRunner):
     """Build with one SitlConfig per vehicle (same physics and speed-up), then `start()` or
     `run()`; `stop()` closes every vehicle."""
 
-    def __init__(self, cfgs: Sequence[SitlConfig]) -> None:
+    def __init__(self, cfgs: Sequence[SitlConfig], quiet_ticks: bool = True, vector_telemetry: bool = True) -> None:
+        """quiet_ticks False: every vehicle takes its full tick every tick (quiet.py);
+        vector_telemetry False: each vehicle builds its own telemetry (fleet_telemetry.py)."""
         if not cfgs:
             raise ValueError("a fleet needs at least one vehicle config")
         kinds = {(c.physics, c.speedup) for c in cfgs}
@@ -49,15 +58,20 @@ class SitlFleet(BackgroundRunner):
         except Exception:
             self._close()
             raise
-        for s in self.sitls:  # each tick's telemetry of a vehicle in one datagram per link
-            s.vehicle.batch_streams = True
-        self._owner = {link.sock: s for s in self.sitls for link in s.vehicle.links}
-        self._owner_fd = {sock.fileno(): s for sock, s in self._owner.items()}
+        self.errors: list[str] = []
+        self.telemetry = FleetTelemetry(self.errors)
+        for s in self.sitls:  # each tick's telemetry built over the fleet, one datagram per link a vehicle
+            if vector_telemetry:
+                s.vehicle.stream_sink = self.telemetry.sink
+            else:  # built and sent in each vehicle's tick, still one datagram per link
+                s.vehicle.batch_streams = True
+        self._owner = {link.sock: i for i, s in enumerate(self.sitls) for link in s.vehicle.links}
+        self._owner_fd = {sock.fileno(): i for sock, i in self._owner.items()}
+        self.quiet = QuietFleet(self.sitls, quiet_ticks, world=self.world)  # ticks changing only the battery
         self._poller = select.epoll() if hasattr(select, "epoll") else select.poll()
         for fd in self._owner_fd:
             self._poller.register(fd, select.POLLIN)
         self.t = 0.0
-        self.errors: list[str] = []
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -67,16 +81,26 @@ class SitlFleet(BackgroundRunner):
     def __getitem__(self, i: int) -> Sitl:
         return self.sitls[i]
 
+    def wake(self, i: int) -> None:
+        """Give vehicle i a full tick next (after changing it other than over MAVLink)."""
+        self.quiet.wake(i)
+
     def step(self) -> None:
-        self.world.step(TICK_S)
+        w = self.world
+        w.step(TICK_S)
         self.t += TICK_S
         # one poll over every vehicle's sockets, not two failing recvfrom calls per vehicle
-        for s in {self._owner_fd[fd] for fd, _ in self._poller.poll(0)}:
-            s.vehicle.service()
-        for s in self.sitls:
-            s.tick(self.t, serve=False)
+        for i in {self._owner_fd[fd] for fd, _ in self._poller.poll(0)}:
+            self._serve_one(i)
+        self.quiet.tick(self.t, w.positions_ned, w.armed, w.landed)
+        self.telemetry.flush()
+
+    def _serve_one(self, i: int) -> None:
+        self.sitls[i].vehicle.service()
+        self.quiet.wake(i)  # what arrived may have changed it: a full tick next
 
     def run(self, duration: float | None = None) -> None:
+        self.quiet.awake[:] = True  # whatever was done to the vehicles between runs is seen
         wall0 = time.monotonic()
         socks = list(self._owner)
         while not self._stop.is_set() and (duration is None or self.t < duration):
@@ -91,8 +115,8 @@ class SitlFleet(BackgroundRunner):
                 pace(wall0, self.t, self.speedup, socks, self._serve)
 
     def _serve(self, ready: list) -> None:
-        for s in {self._owner[sock] for sock in ready}:
-            s.vehicle.service()
+        for i in {self._owner[sock] for sock in ready}:
+            self._serve_one(i)
 
     def _thread_name(self) -> str:
         return f"sitl-fleet-{len(self)}"

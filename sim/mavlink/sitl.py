@@ -238,14 +238,15 @@ class Sitl(BackgroundRunner):
         if self._motion_t0 is None and self.model.state.armed:
             self._motion_t0 = self.t
 
-    def tick(self, t: float, serve: bool = True) -> None:
+    def tick(self, t: float, serve: bool = True, sampled: bool = False) -> None:
         """The MAVLink side's tick after someone else stepped the model to t (fleets); a
         failing tick is recorded and the vehicle stays on the link. serve=False: the caller
-        has just answered what arrived (a fleet polls every vehicle's sockets at once)."""
+        has just answered what arrived (a fleet polls every vehicle's sockets at once);
+        sampled: the caller has taken this tick's GPS fix (MavlinkVehicle.sample_gps)."""
         self.t = t
         self._note_arming()
         try:
-            self.vehicle.tick(t, serve)
+            self.vehicle.tick(t, serve, sampled)
         except Exception:
             self.errors.append(traceback.format_exc())
             log.exception("SITL %d tick failed at t=%.2f", self.cfg.instance, t)

@@ -41,7 +41,11 @@ class Streams:
 
     def _stream(self) -> None:
         if self.t + 1e-9 >= self._stream_next:  # most ticks nothing is due: one comparison
-            if self.batch_streams:  # a fleet's vehicle: this tick's telemetry in one datagram per link
+            if self.stream_sink is not None:  # a fleet's vehicle: the fleet builds and sends them
+                due = self._due_streams()
+                if due:
+                    self.stream_sink.append((self, due))
+            elif self.batch_streams:  # a fleet's vehicle: this tick's telemetry in one datagram per link
                 for link in self.links:
                     link.begin_batch()
                 try:
@@ -68,26 +72,37 @@ class Streams:
             self._send_frame()
 
     def _send_due_streams(self) -> None:
-        t, now, snap, soonest = self.t, self.clock(), None, float("inf")
+        due = self._due_streams()
+        if due:
+            snap = self.snapshot()  # one snapshot for every message of this tick
+            for msg_id in due:
+                self.send_message(msg_id, snap)
+
+    def _due_streams(self) -> list[int]:
+        """The stream messages due now, in rate order; their next due times set. (Every vehicle
+        runs this on 13 ticks a simulated second: locals, no min() calls.)"""
+        t, now, soonest, due_ids = self.t, self.clock(), float("inf"), []
+        te, next_due, next_wall = t + 1e-9, self._next_due, self._next_wall
         for msg_id, hz in self.rates.items():
             if hz <= 0:
                 continue
-            due = self._next_due.get(msg_id, 0.0)
-            if t + 1e-9 < due:
-                soonest = min(soonest, due)
+            due = next_due.get(msg_id, 0.0)
+            if te < due:
+                if due < soonest:
+                    soonest = due
                 continue
             # due in simulated time; but never more than MAX_STREAM_SPEEDUP x the rate in wall time,
             # so a simulation racing ahead (speedup 0) cannot flood a client's receive buffer
-            if now < self._next_wall.get(msg_id, 0.0):
+            if now < next_wall.get(msg_id, 0.0):
                 soonest = t  # held back by the wall clock: look again next tick
                 continue
-            self._next_due[msg_id] = due = t + 1.0 / hz
-            soonest = min(soonest, due)
-            self._next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
-            if snap is None:  # one snapshot for every message of this tick
-                snap = self.snapshot()
-            self.send_message(msg_id, snap)
+            next_due[msg_id] = due = t + 1.0 / hz
+            if due < soonest:
+                soonest = due
+            next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
+            due_ids.append(msg_id)
         self._stream_next = soonest
+        return due_ids
 
     def capture_at(self, time_s: float) -> None:
         """Capture a frame on the first tick at or after simulated time `time_s` (at once if it
@@ -109,7 +124,7 @@ class Streams:
             self.queue_frame()  # a camera frame goes out on the next tick
             return True
         build = BUILDERS.get(msg_id)
-        msg = build(self.mav, snap or self.snapshot()) if build is not None else None
+        msg = build(self.enc, snap or self.snapshot()) if build is not None else None
         if msg is None:
             return False
         self.send(msg)

@@ -103,6 +103,49 @@ class UdpLink:
             return
         self._sendto_peers(buf)
 
+    def send_packed(self, p: wire.Packed, framed: tuple[int, int, int, bytes] | None = None,
+                    ) -> tuple[int, int, int, bytes]:
+        """Send a Packed message (wire.ENCODER) as the link's next packet; unsigned links only.
+        `framed`: (seq, sysid, compid, bytes) of the same message framed by another link of this
+        vehicle, reused when this link's next number is the same (the vehicle sends every packet
+        on every link, so its links count alike): one frame and CRC for both links."""
+        mav = self.mav
+        seq, sysid, compid = mav.seq, mav.srcSystem, mav.srcComponent
+        if framed is not None and framed[0] == seq and framed[1] == sysid and framed[2] == compid:
+            buf = framed[3]
+        else:
+            buf = wire.frame_packed(p, seq, sysid, compid)
+        mav.seq = (seq + 1) & 0xFF
+        self.stats.sent += 1
+        if self.on_bytes and self.log_outgoing:
+            self.on_bytes(buf, True)
+        if self._batch is not None:
+            self._batch.append(buf)
+        else:
+            self._sendto_peers(buf)
+        return seq, sysid, compid, buf
+
+    def send_packets(self, packets: list[wire.Packed], framed: tuple[int, int, int, list[bytes]] | None = None,
+                     ) -> tuple[int, int, int, list[bytes]]:
+        """Send Packed messages as this link's next packets, in one datagram (unsigned links). `framed`:
+        (first seq, sysid, compid, packets) of the same messages framed by another link of this
+        vehicle, reused when this link's numbers are the same (see send_packed)."""
+        mav = self.mav
+        seq, sysid, compid = mav.seq, mav.srcSystem, mav.srcComponent
+        if framed is not None and framed[0] == seq and framed[1] == sysid and framed[2] == compid:
+            bufs = framed[3]
+        else:
+            frame = wire.frame_packed
+            bufs = [frame(p, (seq + k) & 0xFF, sysid, compid) for k, p in enumerate(packets)]
+        mav.seq = (seq + len(bufs)) & 0xFF
+        self.stats.sent += len(bufs)
+        if self.on_bytes and self.log_outgoing:
+            for buf in bufs:
+                self.on_bytes(buf, True)
+        if bufs:
+            self._sendto_peers(b"".join(bufs))
+        return seq, sysid, compid, bufs
+
     def _sendto_peers(self, buf: bytes) -> None:
         for peer in self.peers:
             try:

@@ -30,6 +30,7 @@ from .geofence import Geofence
 from .incoming import Incoming
 from .mission import MissionItem, MissionProtocol, MissionStore
 from .params import ParamStore
+from .quiet import QuietVehicle
 from .signing import SigningGuard
 from .streams import STATUSTEXT_KEEP, Streams, keep
 from .telemetry import DEFAULT_RATES
@@ -49,7 +50,7 @@ class VehicleCounters:
     statustext: list[str] = field(default_factory=list)
 
 
-class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
+class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
     def __init__(
         self,
         model: FlightModel,
@@ -76,6 +77,9 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         #: 5-9 us of CPU here, and a fleet of 100 sent 9,100 a simulated second); a lone vehicle
         #: sends one packet per datagram, as PX4 does
         self.batch_streams = False
+        #: a fleet's list of (vehicle, due stream ids): set, the vehicle hands its due telemetry to
+        #: the fleet, which builds it for all vehicles at once (fleet_telemetry.py) and sends it
+        self.stream_sink: list | None = None
         self.t = 0.0
         self.fix: GpsFix | None = None
         self.counters = VehicleCounters()
@@ -105,6 +109,10 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
             self.signing_guard.install(link.mav)  # one replay table for every link
         self._init_failsafes()
         self._next_frame_t = 0.0
+        #: what the telemetry is built with: wire.ENCODER (payloads without message objects,
+        #: the same bytes) unless a link signs, which needs pymavlink's messages
+        self.enc = self.mav if self.signing_guard is not None or any(
+            link.mav.signing.sign_outgoing for link in links) else wire.ENCODER
 
     # -- helpers -------------------------------------------------------------------------
     @property
@@ -114,10 +122,15 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
     def fence(self) -> Geofence:
         return Geofence(self.params["GF_MAX_HOR_DIST"], self.params["GF_MAX_VER_DIST"])
 
-    def send(self, msg: mavlink.MAVLink_message) -> None:
+    def send(self, msg: mavlink.MAVLink_message | wire.Packed) -> None:
         if "mavlink_signal" in self.failures:
             return  # injected link failure: nothing goes out
         links = self.links
+        if type(msg) is wire.Packed:  # telemetry (self.enc): framed once for every link
+            framed = None
+            for link in links:
+                framed = link.send_packed(msg, framed)
+            return
         if len(links) > 1:  # the payload once for every link (each frames it with its own sequence)
             body = wire.payload(msg)
             for link in links:
@@ -174,19 +187,16 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
                     keep(self.counters.handler_errors, f"{msg.get_type()}: {type(e).__name__}: {e}", STATUSTEXT_KEEP)
                     log.exception("dropped %s after a handler error", msg.get_type())
 
-    def tick(self, t: float, serve: bool = True) -> None:
+    def tick(self, t: float, serve: bool = True, sampled: bool = False) -> None:
         """One simulated step at time t: answer what arrived (unless the caller just did, as a
-        fleet does for the vehicles whose sockets are ready), fly, stream."""
+        fleet does for the vehicles whose sockets are ready), fly, stream. sampled: the caller
+        has just taken this tick's GPS fix (sample_gps; a fleet's quiet ticks do)."""
         dt, self.t = max(t - self.t, 0.0), t
         if serve:
             self.service()
         s = self.model.state
-        fix = self.gps.sample(t, s.position_ned, s.velocity_ned)
-        if "gps" in self.failures:
-            self.fix = None
-        elif fix is not None:
-            self.fix = fix
-            self._follow_estimate()
+        if not sampled:
+            self.sample_gps(t)
         self.battery.step(dt, s.armed, s.armed and not s.landed, self.params["UAVS_BAT_ENDUR_S"],
                           self.params["SIM_BAT_MIN_PCT"] / 100.0)
         s.battery_remaining, s.battery_voltage = self.battery.reading, self.battery.voltage
@@ -194,6 +204,16 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
         self._fly()
         self._stream()
         self.missions.poll()
+
+    def sample_gps(self, t: float) -> None:
+        """The receiver's fix at t, when one is due; the position controller follows it."""
+        s = self.model.state
+        fix = self.gps.sample(t, s.position_ned, s.velocity_ned)
+        if "gps" in self.failures:
+            self.fix = None
+        elif fix is not None:
+            self.fix = fix
+            self._follow_estimate()
 
     # -- the mission protocol's host -------------------------------------------------------
     def mission_item_allowed(self, item: MissionItem) -> bool:
@@ -215,8 +235,10 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming):
             self._target = None  # fly to the new current item
 
     def send_mission_current(self) -> None:
-        self.send(self.mav.mission_current_encode(self.mission.current, len(self.mission.items),
-                                                  self._mission_state()))
+        self.send(self.mission_current())
+
+    def mission_current(self) -> mavlink.MAVLink_message | wire.Packed:
+        return self.enc.mission_current_encode(self.mission.current, len(self.mission.items), self._mission_state())
 
     def _mission_state(self) -> int:
         if not self.mission.items:

@@ -4,6 +4,7 @@ vehicle numbers its packets as MAVLink says (it sent sequence 0 on every packet 
 from __future__ import annotations
 
 import math
+import time
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
@@ -53,3 +54,30 @@ def test_the_vehicle_numbers_its_packets(sitl_factory) -> None:
         assert steps == {1}, seqs  # loopback loses nothing: every packet is the next number
     finally:
         c.close()
+
+
+def test_the_encoder_packs_pymavlinks_bytes_without_message_objects(sitl_factory) -> None:
+    """wire.ENCODER (what the vehicle builds its telemetry with) against pymavlink's messages:
+    every telemetry builder, char and uint8 arrays, extension defaults, NaN, an all-zero payload."""
+    sitl = sitl_factory(physics="kinematic")
+    v, ref = sitl.vehicle, mavlink.MAVLink(None, srcSystem=sitl.cfg.sysid, srcComponent=1)
+    assert v.enc is wire.ENCODER, "an unsigned vehicle builds its telemetry with the encoder"
+    snaps = [v.snapshot()]
+    assert v.arm() and v.takeoff(v.home.alt_m + 3.0) == M.MAV_RESULT_ACCEPTED
+    t0, wall0 = sitl.t, time.monotonic()
+    while sitl.t < t0 + 1.0 and time.monotonic() < wall0 + 20:  # climbing: non-zero everything
+        time.sleep(0.05)
+    snaps.append(v.snapshot())
+    pairs = [(b(wire.ENCODER, x), b(v.mav, x)) for x in snaps for b in BUILDERS.values()]
+    calls = [("statustext_encode", (M.MAV_SEVERITY_INFO, b"x" * 50, 7, 2)),
+             ("statustext_encode", (M.MAV_SEVERITY_INFO, b"short")),
+             ("encapsulated_data_encode", (3, bytes(range(253)))),
+             ("param_value_encode", (b"COM_OF_LOSS_T", math.nan, M.MAV_PARAM_TYPE_REAL32, 90, 3)),
+             ("mission_ack_encode", (0, 0, 0, 0)),
+             ("mission_current_encode", (2, 5, M.MISSION_STATE_ACTIVE))]
+    pairs += [(getattr(wire.ENCODER, n)(*a), getattr(v.mav, n)(*a)) for n, a in calls]
+    pairs = [(p, m) for p, m in pairs if m is not None]
+    assert len(pairs) >= 26
+    for seq, (p, m) in zip([0, 1, 77, 255] * 20, pairs, strict=False):
+        ref.seq = seq
+        assert wire.frame_packed(p, seq, sitl.cfg.sysid, 1) == m.pack(ref), m.get_type()
