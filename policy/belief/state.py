@@ -101,6 +101,42 @@ def _shift(a: np.ndarray, dy: int, dx: int) -> np.ndarray:
     return out
 
 
+def weighted_rows(weights: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """weights (n, K) @ table (K, M), each row summed term by term in the order of K, its zero
+    weights skipped (adding 0 * x changes no sum), in the weights' and table's dtype.
+
+    Why not `weights @ table`: a BLAS product's rounding depends on its thread count and on the
+    batch (OpenBLAS with 1 and 2 threads gives other float32 sums at (10, 400) x (400, 400), so
+    the planner's decisions depended on the machine); and on a loaded 2-core machine its threads
+    spin: (10, 400) x (400, 400) took 23 ms instead of 0.3 ms, most of a 20 x 20 DAgger
+    rollout. Here a row depends only on its own weights (the same alone as in any batch), and
+    the belief's weights are sparse (the few sighted and found cells of a static search): step j
+    adds every row's j-th nonzero term, as many steps as the densest row has nonzeros (dense
+    weights: one pass per column instead, the same sums)."""
+    n = weights.shape[0]
+    out = np.zeros((n, table.shape[1]), np.result_type(weights, table))
+    rows, cols = np.nonzero(weights)
+    if len(rows) == 0:
+        return out
+    if len(rows) * 4 > weights.size:  # dense (a diffused density): one pass per column, no gather
+        for k in np.flatnonzero(weights.any(axis=0)):
+            out += weights[:, k, None] * table[k]
+        return out
+    counts = np.bincount(rows, minlength=n)
+    first = np.cumsum(counts) - counts
+    rank = np.arange(len(rows)) - first[rows]  # position of each nonzero within its row
+    width = int(counts.max())
+    idx = np.zeros((n, width), np.int64)
+    wgt = np.zeros((n, width), weights.dtype)
+    idx[rows, rank] = cols
+    wgt[rows, rank] = weights[rows, cols]
+    by_count = np.argsort(-counts, kind="stable")  # rows with more nonzeros first
+    ordered = counts[by_count]
+    for j in range(width):
+        sel = by_count[: int(np.searchsorted(-ordered, -j, side="left"))]  # rows with > j nonzeros
+        out[sel] += wgt[sel, j, None] * table[idx[sel, j]]
+    return out
+
 def offmap_table(h: int, w: int) -> np.ndarray:
     """(h, w, 3, 3) bool: whether view slot (dy, dx) is off the map for an agent at (x, y)."""
     ys = np.arange(h)[:, None, None, None] + np.arange(-1, 2)[None, None, :, None]
@@ -195,7 +231,7 @@ class BeliefState:
             # pairwise placement structure: each known target (sighted or found) multiplies the
             # density of the others by the pair correlation at their offset (a lattice's spacing)
             known = (self._sighted + self.found).reshape(self.n, -1)
-            logf = (known @ self._pair).reshape(weight.shape)
+            logf = weighted_rows(known, self._pair).reshape(weight.shape)
             weight = weight * np.exp(logf - logf.max(axis=(1, 2), keepdims=True))
         tot = weight.sum(axis=(1, 2))
         scale = np.where(tot > 1e-12, np.maximum(left, 0.0) / np.maximum(tot, 1e-12), 0.0)

@@ -39,6 +39,7 @@ from sim.gridworld import DELTAS, Episodes, GridConfig
 
 from ..base import Observation, Policy, random_valid
 from ..belief import BeliefState
+from ..belief.state import weighted_rows
 from ..groundtruth.legs import step_towards
 from ..groundtruth.pt import held_karp
 
@@ -168,7 +169,7 @@ class BeliefPlanner(Policy):
         if self.cfg.moving:
             mass = b.target * 1.0
             if self._herd is not None:
-                logf = (b.found.reshape(self.n, -1) @ self._herd).reshape(mass.shape)
+                logf = weighted_rows(b.found.reshape(self.n, -1), self._herd).reshape(mass.shape)
                 wgt = np.exp(self.params.herd * (logf - logf.max(axis=(1, 2), keepdims=True)))
                 tot = mass.sum(axis=(1, 2), keepdims=True)
                 mass = mass * wgt
