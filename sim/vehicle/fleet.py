@@ -110,6 +110,8 @@ class QuadrotorFleet:
         self.speed = np.full(n, np.nan)
         self.yaw = np.full(n, np.pi / 2)
         self.time = 0.0
+        self._masks: tuple | None = None  # _mode_masks
+        self._last_read: tuple | None = None  # the world as _update_states read it (_substep)
         self.states = [VehicleState() for _ in range(n)]
         self.members = [FleetMember(self, i) for i in range(n)]
         self._update_states()
@@ -122,6 +124,7 @@ class QuadrotorFleet:
         if not s.landed:
             return False
         s.armed = self.armed[i] = True
+        self._masks = None
         self.ctrl.reset(i)
         pos, _ = p.getBasePositionAndOrientation(self.bodies[i], self.cid)
         self.target[i] = pos
@@ -133,6 +136,7 @@ class QuadrotorFleet:
         if not s.landed and not force:
             return False
         s.armed = self.armed[i] = False
+        self._masks = None
         self.mode[i] = IDLE
         self.omega[i] = 0.0
         return True
@@ -143,23 +147,29 @@ class QuadrotorFleet:
             self.yaw[i] = ned_yaw_to_enu(float(yaw))
         self.speed[i] = np.nan if speed is None else float(speed)
         self.mode[i] = POSITION
+        self._masks = None
 
     def set_velocity_target(self, i: int, velocity_ned) -> None:
         self.vel_cmd[i] = _ned_to_enu(velocity_ned)
         self.mode[i] = VELOCITY
+        self._masks = None
 
     def land(self, i: int) -> None:
         self.mode[i] = LAND
+        self._masks = None
 
     # -- physics -----------------------------------------------------------------------------
     def step(self, dt: float) -> None:
+        self._masks = None  # the commands may have changed: the mode masks are made again
         for _ in range(max(1, int(round(dt * PHYSICS_HZ)))):
             self._substep()
         self._update_states()
 
     def _read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(N, 3) positions, (N, 3, 3) rotations, (N, 3) linear and angular velocities (ENU),
-        gathered into one flat list and one array: PyBullet answers per body."""
+        gathered into one flat list and one array: PyBullet answers per body. The rotations
+        from the quaternions as PyBullet's getMatrixFromQuaternion makes them (btMatrix3x3's
+        setRotation, double precision): the same numbers, without a call per body."""
         cid, flat = self.cid, []
         for b in self.bodies:
             pos, quat = p.getBasePositionAndOrientation(b, cid)
@@ -167,32 +177,57 @@ class QuadrotorFleet:
             flat += pos
             flat += lin
             flat += ang
-            flat += p.getMatrixFromQuaternion(quat)
-        a = np.array(flat).reshape(self.n, 18)
-        return a[:, 0:3], a[:, 9:18].reshape(self.n, 3, 3), a[:, 3:6], a[:, 6:9]
+            flat += quat
+        a = np.array(flat).reshape(self.n, 13)
+        x, y, z, w = a[:, 9], a[:, 10], a[:, 11], a[:, 12]
+        s = 2.0 / (x * x + y * y + z * z + w * w)
+        xs, ys, zs = x * s, y * s, z * s
+        wx, wy, wz = w * xs, w * ys, w * zs
+        xx, xy, xz = x * xs, x * ys, x * zs
+        yy, yz, zz = y * ys, y * zs, z * zs
+        rot = np.empty((self.n, 3, 3))
+        rot[:, 0, 0], rot[:, 0, 1], rot[:, 0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
+        rot[:, 1, 0], rot[:, 1, 1], rot[:, 1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
+        rot[:, 2, 0], rot[:, 2, 1], rot[:, 2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
+        return a[:, 0:3], rot, a[:, 3:6], a[:, 6:9]
+
+    def _mode_masks(self) -> tuple:
+        """(flying, any flying, all flying, velocity mask or None, land mask or None, idle spin):
+        the commands change between steps, not between substeps (a touch-down clears them)."""
+        if self._masks is None:
+            flying = self.armed & (self.mode != IDLE)
+            velocity, land = self.mode == VELOCITY, self.mode == LAND
+            spin = np.repeat((self.armed * (0.15 * self.af.max_omega))[:, None], 4, axis=1)
+            self._masks = (flying, bool(flying.any()), bool(flying.all()), velocity if velocity.any() else None,
+                           land if land.any() else None, spin)
+        return self._masks
 
     def _substep(self) -> None:
         h, af = 1.0 / PHYSICS_HZ, self.af
-        pos, rot, lin, ang = self._read()
-        flying = self.armed & (self.mode != IDLE)
-        w_cmd = np.repeat((self.armed * (0.15 * af.max_omega))[:, None], 4, axis=1)  # idle spin, or stopped
-        if flying.any():
+        # the state read for the last step's states is the world now (only stepSimulation moves
+        # it): one read of 16 bodies a step fewer
+        read, self._last_read = self._last_read, None
+        pos, rot, lin, ang = read if read is not None else self._read()
+        flying, any_flying, all_flying, velocity, land, spin = self._mode_masks()
+        w_cmd = spin.copy()  # idle spin, or stopped
+        if any_flying:
             wb = (ang[:, :, None] * rot).sum(axis=1)  # R^T w, per vehicle
             vel_sp = self.ctrl.velocity_setpoint(pos, self.target, self.speed)
-            velocity = self.mode == VELOCITY
-            if velocity.any():
+            if velocity is not None:
                 vel_sp[velocity] = self.vel_cmd[velocity]
-            land = self.mode == LAND
-            if land.any():  # hold horizontal position, descend
+            if land is not None:  # hold horizontal position, descend
                 vel_sp[land, :2] = 0.0
                 vel_sp[land, 2] = np.where(pos[land, 2] > 1.0, -0.7, -0.4)
             held = self.ctrl.vel_int
             thrust, torque = self.ctrl.thrust_and_torque(rot, lin, wb, vel_sp, self.yaw, h)
-            if not flying.all():  # only flying vehicles integrate
+            if not all_flying:  # only flying vehicles integrate
                 self.ctrl.vel_int[~flying] = held[~flying]
             f = thrust[:, None] * self._alloc_inv_t[0] + torque @ self._alloc_inv_t[1:]
             w_fly = np.sqrt(np.maximum(f, 0.0) * (1.0 / af.kf))
-            w_cmd[flying] = w_fly[flying]
+            if all_flying:
+                w_cmd = w_fly
+            else:
+                w_cmd[flying] = w_fly[flying]
         np.minimum(w_cmd, af.max_omega, out=w_cmd)
         self.omega += (w_cmd - self.omega) * min(1.0, h / af.motor_tau)
         q = self.omega * self.omega
@@ -205,14 +240,13 @@ class QuadrotorFleet:
             p.applyExternalTorque(b, -1, to, _WORLD_FRAME, cid)
         p.stepSimulation(cid)
         self.time += h
-        landing = (self.mode == LAND) & self.armed
-        if landing.any():
-            touch = landing & (pos[:, 2] < af.size[2] / 2 + 0.03) & (np.abs(lin[:, 2]) < 0.2)
+        if land is not None:
+            touch = land & self.armed & (pos[:, 2] < af.size[2] / 2 + 0.03) & (np.abs(lin[:, 2]) < 0.2)
             for i in np.flatnonzero(touch):
                 self.disarm(int(i), force=True)
 
     def _update_states(self) -> None:
-        pos, rot, lin, ang = self._read()
+        pos, rot, lin, ang = self._last_read = self._read()
         wb = (ang[:, :, None] * rot).sum(axis=1)
         ground_z = self.af.size[2] / 2
         local = pos - self.offset

@@ -73,3 +73,24 @@ def test_a_member_is_stepped_by_its_fleet_only() -> None:
         fleet.members[0].step(0.02)
     with pytest.raises(ValueError, match="at least one"):
         KinematicFleet(0)
+
+
+def test_the_fleet_reads_the_rotations_pybullet_gives() -> None:
+    """QuadrotorFleet turns the bodies' quaternions into rotations itself (one numpy pass, not a
+    getMatrixFromQuaternion call per body per substep): the same numbers, tilted and yawed."""
+    import pybullet as p
+
+    fleet = QuadrotorFleet(4)
+    try:
+        for i, m in enumerate(fleet.members):
+            m.arm()
+            m.set_position_target(np.array([3.0 * i, -2.0, -3.0]), yaw=0.7 * i)
+        for _ in range(40):
+            fleet.step(0.02)
+        _, rot, _, _ = fleet._read()
+        for b, r in zip(fleet.bodies, rot, strict=True):
+            _, quat = p.getBasePositionAndOrientation(b, fleet.cid)
+            assert np.array_equal(r.ravel(), np.array(p.getMatrixFromQuaternion(quat)))
+        assert np.abs(rot[:, 2, :2]).max() > 0.01, "tilted: the test saw more than the identity"
+    finally:
+        fleet.close()
