@@ -59,7 +59,10 @@ class SitlFleet(BackgroundRunner):
             self._close()
             raise
         self.errors: list[str] = []
-        self.telemetry = FleetTelemetry(self.errors)
+        arrays = isinstance(self.world, KinematicFleet)  # its states read its arrays (ArrayState)
+        self.telemetry = FleetTelemetry(self.errors, self.world if arrays else None)
+        for i, s in enumerate(self.sitls):
+            s.vehicle.fleet_index = i
         for s in self.sitls:  # each tick's telemetry built over the fleet, one datagram per link a vehicle
             if vector_telemetry:
                 s.vehicle.stream_sink = self.telemetry.sink

@@ -85,34 +85,49 @@ def row_dtype_cached(cls: type) -> np.dtype:
 
 
 class Gathered:
-    """What the vectorised builders read, for k vehicles (as Snapshot gives one)."""
+    """What the vectorised builders read, for k vehicles (as Snapshot gives one). `world`: a
+    KinematicFleet whose states read its arrays (ArrayState), with the vehicles' fleet indices
+    `idx`: positions, velocities, flags and battery come from its arrays, not 8 reads a
+    vehicle."""
 
-    def __init__(self, vehicles: list) -> None:
-        t, pos, err, vel, rpy, rates, home, flags, power, fixes = [], [], [], [], [], [], [], [], [], []
+    def __init__(self, vehicles: list, world=None, idx: list[int] | None = None) -> None:
+        t, err, rpy, rates, home, flags, fixes = [], [], [], [], [], [], []
+        pos, vel, power, air = [], [], [], []
+        arrays = world is not None and idx is not None
         for v in vehicles:
             s = v.model.state
             t.append(v.t)
-            pos.append(s.position_ned)
             err.append(v.gps.estimate_error)
-            vel.append(s.velocity_ned)
             rpy.append(s.attitude_rpy)
             rates.append(s.body_rates)
             home.append(_geo(v))
             mode = v.mode
-            flags.append((s.armed, s.landed, mode.startswith("AUTO"), v.fix is not None, v._fence_hold,
-                          "battery" not in v.failures, _custom_mode(mode)))
-            power.append((s.battery_voltage, s.battery_remaining))
-            fixes.append(v.fix)
+            fix = v.fix
+            flags.append((mode.startswith("AUTO"), fix is not None, v._fence_hold, "battery" not in v.failures,
+                          _custom_mode(mode)))
+            fixes.append(fix)
+            if not arrays:
+                pos.append(s.position_ned)
+                vel.append(s.velocity_ned)
+                power.append((s.battery_voltage, s.battery_remaining))
+                air.append((s.armed, s.landed))
         self.k = len(vehicles)
         self.t = np.array(t)
-        self.est = np.array(pos) + np.array(err)  # MavlinkVehicle.estimate
-        self.vel, self.rpy, self.rates = np.array(vel), np.array(rpy), np.array(rates)
+        if arrays:
+            pos_a, vel_a = world.positions_ned[idx], world.velocities_ned[idx]
+            self.voltage, self.remaining = world.battery_voltage[idx], world.battery_remaining[idx]
+            self.armed, self.landed = world.armed[idx], world.landed[idx]
+        else:
+            pos_a, vel_a = np.array(pos), np.array(vel)
+            self.voltage, self.remaining = np.array(power).reshape(-1, 2).T
+            a = np.array(air, dtype=bool).reshape(-1, 2)
+            self.armed, self.landed = a[:, 0], a[:, 1]
+        self.est = pos_a + np.array(err)  # MavlinkVehicle.estimate
+        self.vel, self.rpy, self.rates = vel_a, np.array(rpy), np.array(rates)
         self.home = np.array(home)  # (k, 5): lat, lon, alt, m + alt, (n + alt) cos(lat)
-        f = np.array(flags, dtype=np.int64).reshape(-1, 7)
-        self.armed, self.landed, self.auto, self.has_fix, self.fence_breached, self.battery_ok = (
-            f[:, j].astype(bool) for j in range(6))
-        self.custom_mode = f[:, 6]
-        self.voltage, self.remaining = np.array(power).reshape(-1, 2).T
+        f = np.array(flags, dtype=np.int64).reshape(-1, 5)
+        self.auto, self.has_fix, self.fence_breached, self.battery_ok = (f[:, j].astype(bool) for j in range(4))
+        self.custom_mode = f[:, 4]
         self.fixes = fixes
 
     @property
@@ -255,8 +270,11 @@ VECTORISED: dict[int, Callable[[Gathered], list[wire.Packed]]] = {
 class FleetTelemetry:
     """Collects (vehicle, due message ids) from the vehicles' ticks (`sink`) and sends them."""
 
-    def __init__(self, errors: list[str] | None = None) -> None:
+    def __init__(self, errors: list[str] | None = None, world=None) -> None:
+        """world: the fleet's airframes, read as arrays when its states are ArrayState views
+        (each vehicle then carries its `fleet_index`)."""
         self.sink: list[tuple[object, list[int]]] = []
+        self.world = world
         self.errors = [] if errors is None else errors  # a vehicle's telemetry that failed: recorded, the rest go out
 
     def flush(self) -> None:
@@ -268,7 +286,9 @@ class FleetTelemetry:
         wanted = {mid: [j for j, (_, due) in enumerate(entries) if mid in due] for mid in VECTORISED}
         needed = sorted({j for js in wanted.values() for j in js})
         if needed:
-            x = Gathered([entries[j][0] for j in needed])
+            vs = [entries[j][0] for j in needed]
+            w = self.world
+            x = Gathered(vs, w, [v.fleet_index for v in vs]) if w is not None else Gathered(vs)
             row = {j: r for r, j in enumerate(needed)}
             for mid, js in wanted.items():
                 if not js:

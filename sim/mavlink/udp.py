@@ -135,8 +135,7 @@ class UdpLink:
         if framed is not None and framed[0] == seq and framed[1] == sysid and framed[2] == compid:
             bufs = framed[3]
         else:
-            frame = wire.frame_packed
-            bufs = [frame(p, (seq + k) & 0xFF, sysid, compid) for k, p in enumerate(packets)]
+            bufs = wire.frame_all(packets, seq, sysid, compid)
         mav.seq = (seq + len(bufs)) & 0xFF
         self.stats.sent += len(bufs)
         if self.on_bytes and self.log_outgoing:

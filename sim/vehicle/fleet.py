@@ -400,9 +400,13 @@ class KinematicFleet:
         nrm = np.linalg.norm(dv, axis=1)
         dv *= np.where(nrm > lim, lim / np.maximum(nrm, 1e-300), 1.0)[:, None]
         a = self.armed
-        self.vel[a] += dv[a]
-        self.vel[~a] = 0.0
-        self.pos[a] += self.vel[a] * dt
+        if a.all():  # the same sums without the masks (fancy indexing is most of a small step)
+            self.vel += dv
+            self.pos += self.vel * dt
+        else:
+            self.vel[a] += dv[a]
+            self.vel[~a] = 0.0
+            self.pos[a] += self.vel[a] * dt
         down = a & (self.pos[:, 2] >= 0.0)
         self.pos[down, 2] = 0.0
         self.vel[down, 2] = np.minimum(self.vel[down, 2], 0.0)

@@ -72,6 +72,9 @@ class GpsModel:
         self._noise_sd = np.array([c.sigma_h, c.sigma_h, c.sigma_v])
         self._period = 1.0 / c.rate_hz
         self._eph, self._epv = float(np.hypot(c.sigma_h, c.bias_sigma_h)), float(np.hypot(c.sigma_v, c.bias_sigma_v))
+        # HomePosition.ned_to_geodetic's two denominators, computed as it computes them (per call)
+        m, n = home.radii()
+        self._km, self._kn = float(m + home.alt_m), float((n + home.alt_m) * np.cos(np.radians(home.lat_deg)))
 
     def _set_estimate_error(self) -> None:
         self._estimate_error = (np.array([self.bias[0], self.bias[1], self.baro]) if self.cfg.height_from_baro
@@ -123,8 +126,10 @@ class GpsModel:
         p0, p1, p2 = np.asarray(position_ned, float).tolist()
         b0, b1, b2 = self.bias.tolist()
         nh, nv, nw = c.sigma_h, c.sigma_v, c.sigma_vel
-        lat, lon, alt = self.home.ned_to_geodetic(np.array([p0 + b0 + z[0] * nh, p1 + b1 + z[1] * nh,
-                                                            p2 + b2 + z[2] * nv]))
+        h = self.home  # HomePosition.ned_to_geodetic in floats (the same operations)
+        lat = h.lat_deg + math.degrees((p0 + b0 + z[0] * nh) / self._km)
+        lon = h.lon_deg + math.degrees((p1 + b1 + z[1] * nh) / self._kn)
+        alt = h.alt_m - (p2 + b2 + z[2] * nv)
         v0, v1, v2 = np.asarray(velocity_ned, float).tolist()
         vel = np.array([v0 + z[3] * nw, v1 + z[4] * nw, v2 + z[5] * nw])
         return GpsFix(time_s, lat, lon, alt, vel, self._eph, self._epv, 3, c.satellites)

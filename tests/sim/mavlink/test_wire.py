@@ -81,3 +81,11 @@ def test_the_encoder_packs_pymavlinks_bytes_without_message_objects(sitl_factory
     for seq, (p, m) in zip([0, 1, 77, 255] * 20, pairs, strict=False):
         ref.seq = seq
         assert wire.frame_packed(p, seq, sitl.cfg.sysid, 1) == m.pack(ref), m.get_type()
+
+
+def test_frame_all_numbers_and_frames_as_frame_packed() -> None:
+    enc = wire.ENCODER
+    packets = [enc.heartbeat_encode(2, 12, 81, 65536, 3), enc.mission_ack_encode(0, 0, 0, 0),
+               enc.local_position_ned_encode(5, 1.0, 2.0, 3.0, 0.1, 0.2, 0.3)] * 3
+    got = wire.frame_all(packets, 250, 7, 1)
+    assert got == [wire.frame_packed(p, (250 + k) & 0xFF, 7, 1) for k, p in enumerate(packets)]
