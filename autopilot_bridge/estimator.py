@@ -175,14 +175,14 @@ class GpsEstimator:
         i_kh = np.eye(9) - k @ h
         self.kf.P = i_kh @ p @ i_kh.T + k @ r @ k.T  # Joseph form
 
-    def doubt_split(self, sd_m: float) -> None:
+    def doubt_split(self, sd_m: float, axes: tuple[int, ...] = (0, 1)) -> None:
         """Add sd_m^2 of doubt to how the GPS reading splits into position and bias (north,
         east), keeping the doubt on their sum (what the receiver measures) as it is: a position
         measurement that contradicts the posterior (a target seen off the field) then moves the
         estimate to it instead of being averaged with a wrong belief."""
         v = sd_m**2
         p = self.kf.P
-        for i in (0, 1):
+        for i in axes:
             p[i, i] += v
             p[i + 6, i + 6] += v
             p[i, i + 6] -= v

@@ -376,17 +376,22 @@ class PolicyService:
             offset = np.asarray(b.offset_ne(height))
             (cx, cy), = blob_cells([b], mean, height)
             on = (int(np.clip(cx, 0, g.width - 1)), int(np.clip(cy, 0, g.height - 1)))
-            off_field = on != (cx, cy)
+            # per axis (north, east): is the target placed off the field along it?
+            off_field = np.array([on[1] != cy, on[0] != cx])
             z = cell_to_ned(np.array(on)) - offset  # where the camera is, if the target is there
             r = np.abs(z - mean)
             s2 = np.diag(post.horizontal_cov) + b.sd_m**2
             # 1-D odds of the nearest lattice point against the next one along each axis
             ambiguous = (cell_m - r) ** 2 - r**2 < 2.0 * s2 * math.log(REGISTER_P / (1.0 - REGISTER_P))
-            if off_field:
-                self.estimator.doubt_split(cell_m)
-            elif ambiguous.any():
+            # each axis on its own: the lattice is a product of two, the posterior ~isotropic.
+            # Off the field along an axis, that axis is forced (whatever the odds); the other
+            # is not (it registered a cow placed a column off: seed 3, NEES 27 after)
+            axes = tuple(int(i) for i in np.flatnonzero(off_field | ~ambiguous))
+            if not axes:
                 continue
-            self.estimator.observe_position(t, z, b.sd_m)
+            if off_field.any():
+                self.estimator.doubt_split(cell_m, tuple(int(i) for i in np.flatnonzero(off_field)))
+            self.estimator.observe_position(t, z[list(axes)], b.sd_m, axes)
             used += 1
             if on == (int(cell[0]), int(cell[1])) and not b.at_edge and np.abs(offset).max() > FOUND_M:
                 off_centre = True
@@ -398,14 +403,14 @@ class PolicyService:
         Under the camera: the blob's (GPS-free) offset is within FOUND_M of the nadir on both
         axes, so the vehicle is truly over it, whichever cell the posterior puts it in. Beside
         it: in the believed cell by the posterior, further off (not cut by the frame's edge).
-        Found before: the target's position in the receiver's frame (`reading_ne`: position +
-        bias, which GPS measures directly) is within half a cell of a target found (or seen
-        again) earlier; the two readings differ by the bias's drift in between (0.26 m sd over
-        a decision, 0.8 m over minutes). Without this a target found a cell off the nadir, or
+        Found before: the target's position in the autopilot's frame (`_reading_at`: truth +
+        GPS bias) is within half a cell of a target found (or seen again) earlier; the two
+        readings differ by the bias's drift in between (0.26 m sd over a decision, 0.8 m over
+        minutes). Without this a target found a cell off the nadir, or
         seen from the next cell with the posterior a metre off, was found twice (20 flights:
         84 % truly found, every flight believing 5/5)."""
         height = self.camera_height()
-        reading, _ = self.estimator.reading_ne(t)
+        reading = self._reading_at(t)
         mean = self.estimator.posterior(t).mean_ned[:2]
         below, aside = [], []
         for b in blobs:
@@ -430,8 +435,17 @@ class PolicyService:
                 return True
         return False
 
+    def _reading_at(self, t: float) -> np.ndarray:
+        """Where the autopilot puts the vehicle at simulated time t (local north, east): its
+        estimate is the truth plus the GPS bias, smooth (the receiver's white noise is filtered
+        out by its inertial fusion), so two readings of one spot a few seconds apart differ by
+        the bias's drift only. (The companion's own p + b is noisier: readings of one cow over
+        16 s scattered by +-1 m.) Without telemetry then: the companion's p + b."""
+        here = self._local_at(t)
+        return here if here is not None else self.field_to_local(self.estimator.reading_ne(t)[0])
+
     def _remember(self, t: float, blobs: list) -> None:
-        reading, _ = self.estimator.reading_ne(t)
+        reading = self._reading_at(t)
         for b in blobs:
             self._found_at.append((t, reading + np.asarray(b.offset_ne(self.camera_height()))))
 

@@ -141,5 +141,16 @@ def test_a_true_position_measurement_makes_the_gps_bias_observable() -> None:
     assert q[0, 0] == pytest.approx(p[0, 0] + 4.0) and q[6, 6] == pytest.approx(p[6, 6] + 4.0)
     total = lambda m: m[0, 0] + m[6, 6] + 2 * m[0, 6]  # noqa: E731 - var(p + b) north
     assert total(q) == pytest.approx(total(p))
+    # a target placed off the field along one axis forces that axis only (the other may be a
+    # column off: registered with it, seed 3 flew on with NEES 27)
+    q = est.kf.P.copy()
+    est.doubt_split(2.0, axes=(0,))
+    assert est.kf.P[0, 0] == pytest.approx(q[0, 0] + 4.0) and est.kf.P[1, 1] == pytest.approx(q[1, 1])
+    # the autopilot's reading (position + bias) is what GPS measures: a true-position
+    # measurement splits it anew but hardly moves it
+    before, var = est.reading_ne()
+    assert var.max() < 0.2
+    est.observe_position(2.0, est.posterior().mean_ned[:2] + 0.5, 0.3, axes=(0, 1))
+    assert np.abs(est.reading_ne()[0] - before).max() < 0.25
     with pytest.raises(ValueError):
         est.observe_position(3.0, np.array([np.nan, 0.0]), 0.1)
