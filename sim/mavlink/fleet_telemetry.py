@@ -59,19 +59,16 @@ def row_dtype(cls: type) -> np.dtype:
     return dt
 
 
-def _strip(raw: bytes) -> bytes:
-    body = raw.rstrip(b"\0")
-    return body if body else raw[:1]
-
-
 def pack_rows(cls: type, values: dict[str, np.ndarray | int | float], k: int) -> list[wire.Packed]:
-    """k messages of class cls from per-field arrays (k,) (or scalars), as wire.Packed."""
+    """k messages of class cls from per-field arrays (k,) (or scalars), as wire.Packed's fields
+    (id, CRC extra, payload stripped of trailing zeros as MAVLink 2 sends it)."""
     dt = row_dtype_cached(cls)
     rows = np.zeros(k, dtype=dt)
     for name, v in values.items():
         rows[name] = v
     raw, size, mid, crc = rows.tobytes(), dt.itemsize, cls.id, cls.crc_extra
-    return [wire.Packed(mid, crc, _strip(raw[j:j + size])) for j in range(0, k * size, size)]
+    # plain (id, CRC extra, payload) tuples, as Packed is laid out (a namedtuple costs more to make)
+    return [(mid, crc, raw[j:j + size].rstrip(b"\0") or raw[j:j + 1]) for j in range(0, k * size, size)]
 
 
 _DTYPES: dict[type, np.dtype] = {}

@@ -87,10 +87,9 @@ def frame_all(packets: list[Packed], seq: int, sysid: int, compid: int) -> list[
     """frame_packed for consecutive packets numbered from seq, in one loop (a vehicle's tick of
     telemetry: no call per packet)."""
     out, pack, crc, crc_pack, extra = [], _HEADER.pack, _mcrf4xx, _CRC.pack, _EXTRA
-    for p in packets:
-        msgid, body = p.msg_id, p.body
+    for msgid, crc_extra, body in packets:  # Packed, or a plain (id, CRC extra, payload) tuple
         head = pack(_STX, len(body), 0, 0, seq, sysid, compid, msgid & 0xFFFF, msgid >> 16)
-        out.append(head + body + crc_pack(crc(head[1:] + body + extra[p.crc_extra], 0xFFFF)))
+        out.append(head + body + crc_pack(crc(head[1:] + body + extra[crc_extra], 0xFFFF)))
         seq = (seq + 1) & 0xFF
     return out
 
