@@ -92,6 +92,7 @@ class PyBulletQuadrotor:
         self._speed: float | None = None
         self._yaw_enu = np.pi / 2  # facing north
         self.time = 0.0
+        self._last_read: tuple | None = None  # (pos, lin, ang, rot) as _update_state read them
         self._update_state()
 
     # -- FlightModel ---------------------------------------------------------------------
@@ -149,10 +150,16 @@ class PyBulletQuadrotor:
         force at the centre of mass and one torque, as Bullet itself sums them."""
         h = self._h
         cid, body = self.cid, self.body
-        # (positional client ids: keyword parsing costs as much as a getter)
-        pos, quat = p.getBasePositionAndOrientation(body, cid)
-        lin, ang = p.getBaseVelocity(body, cid)
-        rot = p.getMatrixFromQuaternion(quat)
+        # the world as the last _update_state read it (only stepSimulation moves it): the first
+        # substep of a step reads nothing; the others read (positional client ids: keyword
+        # parsing costs as much as a getter)
+        read, self._last_read = self._last_read, None
+        if read is not None:
+            pos, lin, ang, rot = read
+        else:
+            pos, quat = p.getBasePositionAndOrientation(body, cid)
+            lin, ang = p.getBaseVelocity(body, cid)
+            rot = p.getMatrixFromQuaternion(quat)
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
         af = self.af
         s = self._s
@@ -208,7 +215,9 @@ class PyBulletQuadrotor:
     def _update_state(self) -> None:
         pos, quat = p.getBasePositionAndOrientation(self.body, self.cid)
         lin, ang = p.getBaseVelocity(self.body, self.cid)
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = p.getMatrixFromQuaternion(quat)
+        rot = p.getMatrixFromQuaternion(quat)
+        self._last_read = (pos, lin, ang, rot)
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
         roll, pitch, yaw = p.getEulerFromQuaternion(quat)
         s = self._s
         s.time_s = self.time
