@@ -8,17 +8,20 @@ does, 0.5 ms of a 100-vehicle fleet's 1 ms budget per vehicle-second at 10x real
 After each full tick a vehicle states how long it stays quiet (`QuietPlan`); `QuietFleet` then
 decides every tick with numpy over the fleet which vehicles are still quiet, and steps those
 with the same battery arithmetic on arrays (the same IEEE operations in the same order: the
-same numbers), while the others take the full tick. A vehicle is woken for a full tick by:
+same numbers), taking a due GPS fix first and handing due telemetry to the fleet last, as the
+full tick orders them; the others take the full tick (without a fix already taken). A vehicle
+is woken for a full tick by:
 - anything it received (the fleet marks a served vehicle awake before its next tick);
 - its airframe arming, disarming, taking off or landing (the failsafes and the flying change);
-- simulated time reaching its next camera frame, or the offboard setpoint timeout (in simulated time; a wall-clock timeout alone keeps it awake);
+- simulated time reaching its next camera frame, or its offboard setpoint timeout (in simulated
+  time; once past it, the vehicle stays awake until setpoints come or the failsafe fires);
 - the wall clock reaching its data-link-loss timeout;
 - its battery about to cross the next failsafe threshold (the tick that crosses is full);
 - its position estimate leaving the geofence, or reaching its take-off height.
-Modes that act on every tick (mission, return, position control), velocity control,
-a geofence hold, an offboard-loss hold, a mission upload, queued frames, injected failures and a
-vehicle on another clock than the fleet's are never quiet. tests/sim/mavlink/test_quiet.py flies a fleet both ways and
-compares every vehicle's state, battery, mode, failsafes and telemetry tick by tick.
+Modes that act on every tick (mission, return, position control), velocity control, a geofence
+hold, an offboard-loss hold, a mission upload, queued frames, injected failures and a vehicle on
+another clock than the fleet's are never quiet. tests/sim/mavlink/test_quiet.py flies a fleet
+both ways and compares every vehicle's state, battery, mode, failsafes and datagrams tick by tick.
 
 Code that changes a fleet vehicle other than over MAVLink (a test calling its methods) between
 runs is seen at the next `SitlFleet.run`, which wakes every vehicle; during a run, call
