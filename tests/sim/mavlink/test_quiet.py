@@ -11,7 +11,7 @@ from udp_ports import free_udp_port
 from sim.mavlink import SitlConfig, SitlFleet
 
 M = mavlink
-N = 4
+N = 5
 SECONDS = 22.0
 
 
@@ -44,7 +44,7 @@ def _fleet(quiet: bool, wall: FakeWall) -> tuple[SitlFleet, list[list[bytes]]]:
             link._sendto_peers = lambda buf, out=out: out.append(bytes(buf))
         for name, value in (("UAVS_BAT_ENDUR_S", 14.0 if s.cfg.instance == 0 else 1500.0),
                             ("SIM_BAT_MIN_PCT", 0.0), ("COM_OF_LOSS_T", 0.3), ("COM_FAIL_ACT_T", 0.0),
-                            ("COM_DL_LOSS_T", 5.0)):
+                            ("COM_DL_LOSS_T", 5.0), ("GF_MAX_HOR_DIST", 5.0 if s.cfg.instance == 4 else 100.0)):
             assert v.params.set(name, value)[0]
     return fleet, sent
 
@@ -52,20 +52,26 @@ def _fleet(quiet: bool, wall: FakeWall) -> tuple[SitlFleet, list[list[bytes]]]:
 def _script(k: int, home_alt: float) -> dict[int, list]:
     """Messages each vehicle receives at tick k (as a ground station or companion sends them):
     0 takes off and hovers until its battery fails it safe; 1 flies OFFBOARD, then its
-    setpoints stop; 2 is watched by a ground station that goes silent; 3 stays on the ground."""
+    setpoints stop; 2 is watched by a ground station that goes silent; 3 stays on the ground;
+    4 holds OFFBOARD 1 cm inside a 5 m geofence, so a GPS fix moving its estimate breaches it
+    (a fix taken on a quiet tick that then must be full)."""
     gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
     t = k * 0.02
     out: dict[int, list] = {i: [] for i in range(N)}
     if k == 5:
-        for i in range(3):
+        for i in (0, 1, 2, 4):
             out[i].append(gcs.command_long_encode(i + 1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0))
             out[i].append(gcs.command_long_encode(i + 1, 1, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 0,
                                                   home_alt + 3.0))
     if 4.0 <= t < 9.0 and k % 10 == 0:  # setpoints at 5 Hz, then silence
         out[1].append(gcs.set_position_target_local_ned_encode(int(t * 1000), 2, 1, M.MAV_FRAME_LOCAL_NED, 0xBF8,
                                                                5.0, 3.0, -3.0, 0, 0, 0, 0, 0, 0, 1.0, 0))
+    if t >= 4.0 and k % 10 == 5:  # to the fence's edge, for ever, between GPS fixes
+        out[4].append(gcs.set_position_target_local_ned_encode(int(t * 1000), 5, 1, M.MAV_FRAME_LOCAL_NED, 0xFF8,
+                                                               4.99, 0.0, -3.0, 0, 0, 0, 0, 0, 0, 0, 0))
     if k == 225:
         out[1].append(gcs.command_long_encode(2, 1, M.MAV_CMD_DO_SET_MODE, 0, 1, 6, 0, 0, 0, 0, 0))
+        out[4].append(gcs.command_long_encode(5, 1, M.MAV_CMD_DO_SET_MODE, 0, 1, 6, 0, 0, 0, 0, 0))
     if t < 7.0 and k % 50 == 0:  # a ground station's heartbeat at 1 Hz, then silence
         out[2].append(gcs.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0))
     return out
@@ -110,6 +116,7 @@ def test_quiet_ticks_fly_stream_and_fail_safe_as_full_ticks() -> None:
     assert "offboard setpoints lost" in logs[1] and "offboard lost" in logs[1], logs[1]
     assert "data link lost" in logs[2], logs[2]
     assert not logs[3] and not quiet[3].model.state.armed
+    assert quiet[4].vehicle.counters.fence_rejections > 0, "vehicle 4 breached its fence"
     assert all(len(out) > 100 for out in sent_q), "every vehicle streamed"
     ticks = N * int(SECONDS / 0.02)
     assert full.quiet.quiet_ticks == 0 and full.quiet.full_ticks == ticks
