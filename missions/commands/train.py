@@ -76,6 +76,9 @@ def register(app: typer.Typer) -> None:
         beta0: float = typer.Option(1.0, "--dagger-beta0", min=0.0, max=1.0,
                                     help="searchnet: teacher share of the executed moves in the first "
                                          "student-driven DAgger iteration (halved each iteration)."),
+        gps_sigma: float = typer.Option(0.0, "--gps-sigma", min=0.0,
+                                        help="searchnet: GPS noise (m per axis) in the student's DAgger "
+                                             "observations (Kalman fix, probabilistic map); 0: exact."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -89,7 +92,7 @@ def register(app: typer.Typer) -> None:
         if model is Model.searchnet:
             _train_searchnet(out, grid, seed, resume, threads, workers, ray_address, dagger_iterations,
                              dagger_episodes, ppo_updates, ppo_episodes, epochs if epochs != 50 else None,
-                             init, beta0, val_episodes)
+                             init, beta0, val_episodes, gps_sigma)
             return
         if dataset is None:
             raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
@@ -116,7 +119,7 @@ def register(app: typer.Typer) -> None:
 def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threads: int | None, workers: int,
                      ray_address: str | None, iterations: int, dagger_episodes: int, ppo_updates: int,
                      ppo_episodes: int, epochs: int | None, init: Path | None = None, beta0: float = 1.0,
-                     val_episodes: int = 400) -> None:
+                     val_episodes: int = 400, gps_sigma: float = 0.0) -> None:
     """DAgger on the belief planner, then PPO; no dataset (the teacher labels the student's own states)."""
     import torch
 
@@ -128,7 +131,7 @@ def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threa
     torch.set_num_threads(threads or 1)
     try:
         dc = DaggerConfig(iterations=iterations, episodes=dagger_episodes, chunks=max(workers, 1), beta0=beta0,
-                          **({"epochs": epochs} if epochs else {}))
+                          gps_sigma=gps_sigma, **({"epochs": epochs} if epochs else {}))
         tc = SearchTrainConfig(dagger=dc, ppo=PpoConfig(episodes=ppo_episodes), ppo_updates=ppo_updates, seed=seed,
                                val_episodes=val_episodes, init=None if init is None else str(init))
     except ValueError as e:

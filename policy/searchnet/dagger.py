@@ -40,8 +40,14 @@ class DaggerConfig:
     seed_base: int = 1_000_000
     #: cap on a rollout's steps (students that wander are cut; their states are still labelled)
     max_steps_factor: float = 1.5
+    #: GPS noise in the student's observations (metres per axis, cells of 2 m; 0: exact): its
+    #: belief is built from a Kalman-fused position posterior on the probabilistic map, as in
+    #: the GPS evaluation; the teacher labels from the true position (policy.searchnet.rollout)
+    gps_sigma: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.gps_sigma) and self.gps_sigma >= 0):
+            raise ValueError(f"gps_sigma must be >= 0 metres (got {self.gps_sigma})")
         if self.iterations < 0 or self.episodes < 1 or self.chunks < 1 or self.epochs < 1 or self.batch < 1:
             raise ValueError(f"DaggerConfig needs positive counts, iterations >= 0 (got {self})")
         if not (0.0 <= self.beta0 <= 1.0 and 0.0 <= self.beta_decay <= 1.0):
@@ -63,7 +69,7 @@ def rollout_tasks(dc: DaggerConfig, grid: GridConfig, i: int, model: SearchNet |
     sizes = np.diff(np.linspace(0, dc.episodes, dc.chunks + 1).astype(int))
     steps = max(int(dc.max_steps_factor * grid.width * grid.height), 1)
     return [RolloutTask(grid.to_dict(), int(k), dc.seed_base + 1000 * i + j, beta, mc, sd, teacher_prior,
-                        min(steps, grid.t_e + 1)) for j, k in enumerate(sizes) if k > 0]
+                        min(steps, grid.t_e + 1), dc.gps_sigma) for j, k in enumerate(sizes) if k > 0]
 
 
 def gather(tasks: list[RolloutTask], workers: int = 1, ray_address: str | None = None) -> dict[str, np.ndarray]:

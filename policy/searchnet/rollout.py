@@ -39,6 +39,8 @@ class RolloutTask:
     #: policy.planner.resolve_prior); never the student's
     teacher_prior: Any = None
     max_steps: int | None = None
+    #: GPS noise (metres per axis) in the student's observations; 0: exact
+    gps_sigma: float = 0.0
 
 
 def pad_valid(valid: np.ndarray) -> np.ndarray:
@@ -50,8 +52,15 @@ def pad_valid(valid: np.ndarray) -> np.ndarray:
 def collect(task: RolloutTask) -> dict[str, np.ndarray]:
     """Roll out task.episodes episodes; return the student's states with the teacher's labels:
     planes (N, C, h, w) float16, positions (N, 2) int16, valid (N, 5) bool, labels (N,) int64,
-    and per episode moves and success."""
+    and per episode moves and success.
+
+    With task.gps_sigma > 0 the student sees what the GPS evaluation gives (policy.evaluation.gps:
+    a Kalman-fused fix, the posterior over cells, its most likely cell as the position and
+    valid moves from there); the teacher still plans from the true position, so its label is
+    the move the student should make from where it really is. A label the student's own mask
+    rules out is dropped by the fit."""
     from ..baselines.registry import make_policy
+    from ..evaluation.gps import GpsNoise, GpsTracker
 
     torch.set_num_threads(1)
     cfg = GridConfig.from_dict(task.grid)
@@ -68,28 +77,40 @@ def collect(task: RolloutTask) -> dict[str, np.ndarray]:
     belief = BeliefState(cfg, n)
     rng = np.random.default_rng([task.seed, 0xDA66E5])
     limit = task.max_steps or cfg.t_e + 1
+    tracker = None
+    if task.gps_sigma > 0:
+        if cfg.moving or cfg.map_variant != "spatial":
+            raise ValueError("GPS noise in training covers static targets with the spatial map (as its evaluation)")
+        tracker = GpsTracker(cfg, GpsNoise(sigma_m=task.gps_sigma), n, np.random.default_rng([task.seed, 0x6B5]))
     out: dict[str, list[np.ndarray]] = {"planes": [], "positions": [], "valid": [], "labels": []}
     for _ in range(limit):
         if world.done.all():
             break
         obs = observe(world)
         label = np.asarray(teacher.act(obs), dtype=np.int64)
-        belief.update(obs)
+        seen = obs  # what the student observes
+        if tracker is not None:
+            tracker.fix(world.agent.astype(np.float64), obs.active)
+            seen = tracker.observation(obs.views, obs.t, obs.active)
+        belief.update(seen)
         planes = belief.planes()
         act = obs.active
-        valid = pad_valid(obs.valid)
+        valid = pad_valid(seen.valid)
         out["planes"].append(planes[act].astype(np.float16))
-        out["positions"].append(obs.positions[act].astype(np.int16))
+        out["positions"].append(seen.positions[act].astype(np.int16))
         out["valid"].append(valid[act])
         out["labels"].append(label[act])
         a = label.copy()
         if student is not None and task.beta < 1.0:
             with torch.inference_mode():
-                x, mask = obs_tensors(planes, obs.positions, valid, N_ACTIONS)
+                x, mask = obs_tensors(planes, seen.positions, valid, N_ACTIONS)
                 mine = student(x, mask).argmax(dim=1).numpy()
             use_student = rng.random(n) >= task.beta
             a = np.where(use_student, mine, label)
-        world.step(np.minimum(a, cfg.n_actions - 1))
+        a = np.minimum(a, cfg.n_actions - 1)
+        world.step(a)
+        if tracker is not None:
+            tracker.moved(a, act)
     data = {k: np.concatenate(v) for k, v in out.items()}
     data["moves"] = world.t.copy()
     data["success"] = world.success.copy()

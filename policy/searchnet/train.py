@@ -120,6 +120,8 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
     if state_path.exists():
         doc = read_searchnet(state_path)
         started = {"init": None, **(doc.get("train") or {})}  # runs from before `init` existed
+        if isinstance(started.get("dagger"), dict):  # ... and before gps_sigma
+            started["dagger"] = {"gps_sigma": 0.0, **started["dagger"]}
         if doc.get("grid") != grid.to_dict() or _fixed_part(started) != _fixed_part(tc.to_dict()):
             raise CheckpointError(f"{state_path}: was started with another grid or training config; "
                                   f"use the same options to resume (found {doc.get('grid')}, {doc.get('train')})")
