@@ -109,20 +109,9 @@ class UdpLink:
         `framed`: (seq, sysid, compid, bytes) of the same message framed by another link of this
         vehicle, reused when this link's next number is the same (the vehicle sends every packet
         on every link, so its links count alike): one frame and CRC for both links."""
-        mav = self.mav
-        seq, sysid, compid = mav.seq, mav.srcSystem, mav.srcComponent
-        if framed is not None and framed[0] == seq and framed[1] == sysid and framed[2] == compid:
-            buf = framed[3]
-        else:
-            buf = wire.frame_packed(p, seq, sysid, compid)
-        mav.seq = (seq + 1) & 0xFF
-        self.stats.sent += 1
-        if self.on_bytes and self.log_outgoing:
-            self.on_bytes(buf, True)
-        if self._batch is not None:
-            self._batch.append(buf)
-        else:
-            self._sendto_peers(buf)
+        seq, sysid, compid = numbers = self._numbers()
+        buf = framed[3] if framed is not None and framed[:3] == numbers else wire.frame_packed(p, seq, sysid, compid)
+        self._send_framed([buf])
         return seq, sysid, compid, buf
 
     def send_packets(self, packets: list[wire.Packed], framed: tuple[int, int, int, list[bytes]] | None = None,
@@ -130,20 +119,30 @@ class UdpLink:
         """Send Packed messages as this link's next packets, in one datagram (unsigned links). `framed`:
         (first seq, sysid, compid, packets) of the same messages framed by another link of this
         vehicle, reused when this link's numbers are the same (see send_packed)."""
+        seq, sysid, compid = numbers = self._numbers()
+        bufs = framed[3] if framed is not None and framed[:3] == numbers else wire.frame_all(packets, seq, sysid, compid)
+        self._send_framed(bufs)
+        return seq, sysid, compid, bufs
+
+    def _numbers(self) -> tuple[int, int, int]:
+        """(next sequence number, system id, component id): what framing depends on."""
         mav = self.mav
-        seq, sysid, compid = mav.seq, mav.srcSystem, mav.srcComponent
-        if framed is not None and framed[0] == seq and framed[1] == sysid and framed[2] == compid:
-            bufs = framed[3]
-        else:
-            bufs = wire.frame_all(packets, seq, sysid, compid)
-        mav.seq = (seq + len(bufs)) & 0xFF
+        return mav.seq, mav.srcSystem, mav.srcComponent
+
+    def _send_framed(self, bufs: list[bytes]) -> None:
+        """Packets framed with this link's next numbers: count them, log them, and send them in
+        one datagram (or hold them for the batch)."""
+        if not bufs:
+            return
+        self.mav.seq = (self.mav.seq + len(bufs)) & 0xFF
         self.stats.sent += len(bufs)
         if self.on_bytes and self.log_outgoing:
             for buf in bufs:
                 self.on_bytes(buf, True)
-        if bufs:
-            self._sendto_peers(b"".join(bufs))
-        return seq, sysid, compid, bufs
+        if self._batch is not None:
+            self._batch.extend(bufs)
+        else:
+            self._sendto_peers(bufs[0] if len(bufs) == 1 else b"".join(bufs))
 
     def _sendto_peers(self, buf: bytes) -> None:
         for peer in self.peers:
