@@ -40,7 +40,8 @@ def test_three_processes_fly_a_small_search(tmp_path: Path) -> None:
     assert {"HEARTBEAT", "COMMAND_LONG", "SET_POSITION_TARGET_LOCAL_NED", "ENCAPSULATED_DATA"} <= kinds
 
 
-def test_sigint_mid_search_lands_and_disarms(tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_mid_search_lands_and_disarms(tmp_path: Path, sig: signal.Signals) -> None:
     with sitl_process(tmp_path, 9, "--speedup", "6") as (field_file, gcs, _):
         run = uavsearch("run", "--field", str(field_file), "--policy", "lawnmower", "--out", str(tmp_path / "run"))
         lines: list[str] = []
@@ -51,16 +52,16 @@ def test_sigint_mid_search_lands_and_disarms(tmp_path: Path) -> None:
             if "move 4/" in line or not line:
                 break
         assert gcs.armed_now and gcs.seen.alt_m > 2.5, "".join(lines)
-        os.kill(run.pid, signal.SIGINT)
+        os.kill(run.pid, sig)
         rest, _ = run.communicate(timeout=180)
         out = "".join(lines) + rest
-        assert run.returncode == 130, out
-        assert "interrupted by SIGINT" in out and "landed and disarmed" in out, out
+        assert run.returncode == 128 + sig, out
+        assert f"interrupted by {sig.name}" in out and "landed and disarmed" in out, out
         time.sleep(1.0)
         assert not gcs.armed_now, gcs.seen  # (relative_alt is GPS-based: metres of vertical error)
         assert gcs.seen.landed_state == mavutil.mavlink.MAV_LANDED_STATE_ON_GROUND
     log = json.loads((tmp_path / "run" / "search_log.json").read_text())
-    assert log["outcome"]["exit_code"] == 130 and log["outcome"]["touchdown"]["disarmed"]
+    assert log["outcome"]["exit_code"] == 128 + sig and log["outcome"]["touchdown"]["disarmed"]
     assert log["outcome"]["touchdown"]["commanded"] == ["RTL"]
     assert len(log["cells"]) >= 5
 
