@@ -23,18 +23,13 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from policy.base import Observation, Policy
-from sim.gridworld import DELTAS, GridConfig, cell_to_ned, nearest_cell
-from sim.gridworld.geodesy import HomePosition
+from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 
 from .detector import (
-    CAMERA_BELOW_M,
     DetectorConfig,
     blob_cells,
     blobs_to_view,
@@ -45,6 +40,9 @@ from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import LinkError, VehicleLink
 from .probmap import ProbabilisticVisitationMap, cell_probabilities
+from .search_data import Progress, SearchLog, SearchSpec, save_log
+
+__all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 
 log = logging.getLogger(__name__)
 DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
@@ -65,7 +63,6 @@ SETTLED_LOOKBACK_S = 0.5
 #: samples). 400 (40 s) was shorter than one lossy frame at 10x: the samples around t were
 #: gone when the frame came, the leg never "settled", and a 64-move search died.
 LOCAL_KEEP = 10_000
-VISIT_MAPS = ("probabilistic", "hard")
 KEEP_FRAMES = 7
 #: the receiver's fix period (GPS_RAW_INT at 5 Hz)
 FIX_PERIOD_S = 0.2
@@ -84,82 +81,6 @@ REGISTER_P = 0.97
 #: believed cell but further off is re-centred on first (at most RECENTRE times a move)
 FOUND_M = 0.8
 RECENTRE = 2
-
-
-@dataclass(frozen=True)
-class SearchSpec:
-    """What the operator tells the companion computer about the field."""
-
-    origin: HomePosition  # the WGS84 position of cell (0, 0)'s centre
-    grid: GridConfig = field(default_factory=GridConfig)
-    altitude_m: float = 3.5
-    arrive_m: float = 0.25
-    max_moves: int | None = None  # default: the grid's t_e
-    #: simulated seconds per decision: a 2 m leg and settling fit inside (sim targets step on it)
-    decision_period_s: float = 4.0
-    #: "probabilistic": visits spread over the position posterior; "hard": the believed cell only
-    visit_map: str = "probabilistic"
-    #: on the probabilistic map, a decision whose posterior puts at least this much in the
-    #: believed cell takes the position as exact (map and policy): the crisp world the policy
-    #: plans in (a soft map of a position that is known anyway only blurs it). 1.0: never
-    exact_above: float = 0.9
-    #: register the GPS bias: the launch point and targets on cell centres measure the true
-    #: position, and setpoints are shifted by the estimated bias so the camera is truly over
-    #: the cell it is meant to be over (False: fly in the GPS-estimate frame, as before)
-    register: bool = True
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
-            raise ValueError(f"decision_period_s must be > 0 (got {self.decision_period_s})")
-        if self.visit_map not in VISIT_MAPS:
-            raise ValueError(f"visit_map must be one of {VISIT_MAPS} (got {self.visit_map!r})")
-        if not 0.0 < self.exact_above <= 1.0:
-            raise ValueError(f"exact_above must be in (0, 1] (got {self.exact_above})")
-
-
-@dataclass
-class SearchLog:
-    cells: list[tuple[int, int]] = field(default_factory=list)
-    believed_found: list[int] = field(default_factory=list)  # move index of each believed find
-    posterior_sd_m: list[float] = field(default_factory=list)
-    decision_ms: list[float] = field(default_factory=list)
-    #: per decision: the simulated time of its frame and fixes, and the position posterior then
-    times_s: list[float] = field(default_factory=list)
-    posterior_mean_ne: list[list[float]] = field(default_factory=list)
-    posterior_cov_ne: list[list[list[float]]] = field(default_factory=list)
-    #: per decision: the target channel of the 3 x 3 view I the detector made of the frame
-    seen: list[list[list[int]]] = field(default_factory=list)
-    #: per decision: the targets' blobs registered as position measurements (0 when ambiguous)
-    registered: list[int] = field(default_factory=list)
-    #: per decision: whether the position was taken as exact (the believed cell held >= exact_above)
-    exact: list[bool] = field(default_factory=list)
-    #: every setpoint sent (local north, east; the autopilot's estimate frame)
-    setpoints_local: list[list[float]] = field(default_factory=list)
-    #: times the vehicle centred over a target in its cell before deciding (no move counted)
-    recentred: int = 0
-    #: per decision: the targets seen, [north, east] offsets from the camera (m)
-    blobs: list[list[list[float]]] = field(default_factory=list)
-    frames: int = 0
-    frames_missing: int = 0
-    #: times the schedule slipped half a period because a leg had not settled at t_k
-    schedule_slips: int = 0
-    #: frames captured after their time because this computer asked too late (too slow for
-    #: the simulation's speed-up): those decisions are not reproducible
-    late_frames: int = 0
-    wall_s: float = 0.0
-
-
-@dataclass(frozen=True)
-class Progress:
-    """What the operator sees after each decision (the service's own view, never the truth)."""
-
-    move: int
-    max_moves: int
-    found: int
-    n_targets: int
-    cell: tuple[int, int]
-    elapsed_s: float
-    position_sd_m: float
 
 
 class PolicyService:
@@ -350,9 +271,8 @@ class PolicyService:
                  np.round(self.estimator.bias_ned, 2))
 
     def camera_height(self) -> float:
-        """The camera's height over the (flat) field: the autopilot holds the commanded height
-        on its barometer (decimetres of drift)."""
-        return self.spec.altitude_m - CAMERA_BELOW_M
+        """The camera's height over the (flat) field (see SearchSpec.camera_height)."""
+        return self.spec.camera_height()
 
     def _register_targets(self, t: float, blobs: list, cell: np.ndarray) -> tuple[int, bool]:
         """Static targets stand on cell centres: a target seen at a (GPS-free) offset from the
@@ -611,11 +531,3 @@ class PolicyService:
         self.link.land()
         self.link.wait_for(lambda: not self.link.telemetry.armed, timeout, "landing and disarm")
 
-
-def save_log(log: SearchLog, path: Path, **extra: Any) -> None:
-    """The search log, plus anything the caller adds (how the flight ended, provenance)."""
-    from dataclasses import asdict
-
-    from provenance import atomic_write_json
-
-    atomic_write_json(path, {**asdict(log), **extra})

@@ -1,0 +1,111 @@
+"""What the operator and the policy service exchange: the field's spec in, the search log and
+the per-decision progress out, and the log's atomic save.
+
+Its own module because these are plain data: missions (CLI, reports, progress bars) import
+them without the service's threads and link, and the service's parts (telemetry intake,
+registration, the setpoint stream, the decision loop) share them without importing one another.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.gridworld import GridConfig
+from sim.gridworld.geodesy import HomePosition
+
+from .detector import CAMERA_BELOW_M
+
+VISIT_MAPS = ("probabilistic", "hard")
+
+
+@dataclass(frozen=True)
+class SearchSpec:
+    """What the operator tells the companion computer about the field."""
+
+    origin: HomePosition  # the WGS84 position of cell (0, 0)'s centre
+    grid: GridConfig = field(default_factory=GridConfig)
+    altitude_m: float = 3.5
+    arrive_m: float = 0.25
+    max_moves: int | None = None  # default: the grid's t_e
+    #: simulated seconds per decision: a 2 m leg and settling fit inside (sim targets step on it)
+    decision_period_s: float = 4.0
+    #: "probabilistic": visits spread over the position posterior; "hard": the believed cell only
+    visit_map: str = "probabilistic"
+    #: on the probabilistic map, a decision whose posterior puts at least this much in the
+    #: believed cell takes the position as exact (map and policy): the crisp world the policy
+    #: plans in (a soft map of a position that is known anyway only blurs it). 1.0: never
+    exact_above: float = 0.9
+    #: register the GPS bias: the launch point and targets on cell centres measure the true
+    #: position, and setpoints are shifted by the estimated bias so the camera is truly over
+    #: the cell it is meant to be over (False: fly in the GPS-estimate frame, as before)
+    register: bool = True
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
+            raise ValueError(f"decision_period_s must be > 0 (got {self.decision_period_s})")
+        if self.visit_map not in VISIT_MAPS:
+            raise ValueError(f"visit_map must be one of {VISIT_MAPS} (got {self.visit_map!r})")
+        if not 0.0 < self.exact_above <= 1.0:
+            raise ValueError(f"exact_above must be in (0, 1] (got {self.exact_above})")
+
+    def camera_height(self) -> float:
+        """The camera's height over the (flat) field: the autopilot holds the commanded height
+        on its barometer (decimetres of drift)."""
+        return self.altitude_m - CAMERA_BELOW_M
+
+
+@dataclass
+class SearchLog:
+    cells: list[tuple[int, int]] = field(default_factory=list)
+    believed_found: list[int] = field(default_factory=list)  # move index of each believed find
+    posterior_sd_m: list[float] = field(default_factory=list)
+    decision_ms: list[float] = field(default_factory=list)
+    #: per decision: the simulated time of its frame and fixes, and the position posterior then
+    times_s: list[float] = field(default_factory=list)
+    posterior_mean_ne: list[list[float]] = field(default_factory=list)
+    posterior_cov_ne: list[list[list[float]]] = field(default_factory=list)
+    #: per decision: the target channel of the 3 x 3 view I the detector made of the frame
+    seen: list[list[list[int]]] = field(default_factory=list)
+    #: per decision: the targets' blobs registered as position measurements (0 when ambiguous)
+    registered: list[int] = field(default_factory=list)
+    #: per decision: whether the position was taken as exact (the believed cell held >= exact_above)
+    exact: list[bool] = field(default_factory=list)
+    #: every setpoint sent (local north, east; the autopilot's estimate frame)
+    setpoints_local: list[list[float]] = field(default_factory=list)
+    #: times the vehicle centred over a target in its cell before deciding (no move counted)
+    recentred: int = 0
+    #: per decision: the targets seen, [north, east] offsets from the camera (m)
+    blobs: list[list[list[float]]] = field(default_factory=list)
+    frames: int = 0
+    frames_missing: int = 0
+    #: times the schedule slipped half a period because a leg had not settled at t_k
+    schedule_slips: int = 0
+    #: frames captured after their time because this computer asked too late (too slow for
+    #: the simulation's speed-up): those decisions are not reproducible
+    late_frames: int = 0
+    wall_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What the operator sees after each decision (the service's own view, never the truth)."""
+
+    move: int
+    max_moves: int
+    found: int
+    n_targets: int
+    cell: tuple[int, int]
+    elapsed_s: float
+    position_sd_m: float
+
+
+def save_log(log: SearchLog, path: Path, **extra: Any) -> None:
+    """The search log, plus anything the caller adds (how the flight ended, provenance)."""
+    from dataclasses import asdict
+
+    from provenance import atomic_write_json
+
+    atomic_write_json(path, {**asdict(log), **extra})
