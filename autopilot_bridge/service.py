@@ -21,7 +21,6 @@ import logging
 import math
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -41,6 +40,7 @@ from .images import FrameRequester
 from .link import LinkError, VehicleLink
 from .probmap import ProbabilisticVisitationMap, cell_probabilities
 from .search_data import Progress, SearchLog, SearchSpec, save_log
+from .telemetry import TelemetryIntake
 
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 
@@ -48,24 +48,7 @@ log = logging.getLogger(__name__)
 DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
 FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
 
-#: "settled" for the camera at t_k: within SETTLED_M of the setpoint and slower than
-#: SETTLED_SPEED by the autopilot's estimate. A hovering autopilot chases its GPS bias's jitter
-#: (measured at t_k: up to 0.29 m and 0.41 m/s with the simulated receiver), so bounds near
-#: those would slip the schedule at random and break reproducibility; a 2 m leg is over in ~2 s
-SETTLED_M = 0.6
-SETTLED_SPEED = 1.0
-#: the settle check reads the latest LOCAL_POSITION_NED (10 Hz) stamped this long before t:
-#: 0.5 s holds 5 samples, so a 20 %-lossy link leaves none 0.03 % of the time (0.25 s: 1-4 %)
-SETTLED_LOOKBACK_S = 0.5
-#: LOCAL_POSITION_NED samples kept (10 Hz of simulated time). A frame stamped t can arrive
-#: long after t in simulated time: wall seconds of lossy resends times the speed-up (20 s of
-#: FRAME_DEADLINE_S at 50x, where the vehicle starts to thin its streams, is 1000 s, 10k
-#: samples). 400 (40 s) was shorter than one lossy frame at 10x: the samples around t were
-#: gone when the frame came, the leg never "settled", and a 64-move search died.
-LOCAL_KEEP = 10_000
 KEEP_FRAMES = 7
-#: the receiver's fix period (GPS_RAW_INT at 5 Hz)
-FIX_PERIOD_S = 0.2
 #: the launch point (home, the spawn cell's centre) as a position measurement while the vehicle
 #: stands on it disarmed: sd of where the vehicle stands on its pad (m)
 LAUNCH_SD_M = 0.05
@@ -103,88 +86,12 @@ class PolicyService:
         self._setpoint: np.ndarray | None = None  # local NED (autopilot frame)
         self._stream_stop = threading.Event()
         self._alive_until = float("inf")  # the decision loop's deadline (see _expect)
-        self._last_gps_t = -1.0
-        self._fixes: deque = deque()  # (t, ned, eph, epv) received, not yet fused
-        self._fix_lock = threading.Lock()
-        self._local: deque = deque(maxlen=LOCAL_KEEP)  # (t, n, e, vn, ve): the autopilot's estimate
-        self.sim_time_s = 0.0  # the latest simulated time any telemetry was stamped with
         self.t_ref: float | None = None  # the schedule's origin on the simulated clock
-        self._first_fix_t: float | None = None
         self._launch_registered = False
-        self._dropped_until = -math.inf
         self._setpoint_lock = threading.Lock()
         #: targets found (or seen again since): (simulated time, receiver-frame north, east)
         self._found_at: list[tuple[float, np.ndarray]] = []
-        link.add_handler(self._on_message)
-
-    # -- frames: field NED (origin = cell (0,0)) vs the autopilot's local NED (origin = home) --
-    def _home_in_field(self) -> np.ndarray:
-        h = self.link.telemetry.home
-        return self.spec.origin.geodetic_to_ned(h["lat"], h["lon"], h["alt"])
-
-    def field_to_local(self, ne_field: np.ndarray) -> np.ndarray:
-        off = self._home_in_field()
-        return np.array([ne_field[0] - off[0], ne_field[1] - off[1]])
-
-    def _on_message(self, msg) -> None:
-        kind = msg.get_type()
-        if kind == "GPS_RAW_INT" and msg.fix_type >= 3 and msg.time_usec * 1e-6 > self._last_gps_t:
-            t = msg.time_usec * 1e-6
-            self._last_gps_t = t
-            ned = self.spec.origin.geodetic_to_ned(msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3)
-            eph = msg.h_acc * 1e-3 if msg.h_acc else msg.eph * 1e-2
-            epv = msg.v_acc * 1e-3 if msg.v_acc else msg.epv * 1e-2
-            with self._fix_lock:
-                self._fixes.append((t, ned, eph, epv))
-                if self._first_fix_t is None:
-                    self._first_fix_t = t
-            self.sim_time_s = max(self.sim_time_s, t)
-        elif kind == "LOCAL_POSITION_NED":
-            t = msg.time_boot_ms * 1e-3
-            self._local.append((t, msg.x, msg.y, msg.vx, msg.vy))
-            self.sim_time_s = max(self.sim_time_s, t)
-
-    def fuse_until(self, t: float) -> None:
-        """Fuse the received fixes stamped up to simulated time t, in order; later ones wait,
-        so the posterior at a decision does not depend on how fast the link delivered. A fix
-        stamped within half a fix period of t is left for the next decision: whether it has
-        arrived with the frame of t is a race (the vehicle may hold its clock at t for the
-        companion before or after sending it); the one before is waited for a little."""
-        t = t - FIX_PERIOD_S / 2
-        try:
-            self.link.wait_for(lambda: self._last_gps_t > t - FIX_PERIOD_S + 1e-6, 0.5, "")
-        except LinkError:
-            pass  # a fix lost on the link: fuse what came
-        with self._fix_lock:
-            due = []
-            while self._fixes and self._fixes[0][0] <= t + 1e-6:
-                due.append(self._fixes.popleft())
-        for ft, ned, eph, epv in due:
-            if ft > self._dropped_until + 1e-6:
-                self.estimator.update(ft, ned, eph, epv)
-
-    def drop_fixes_until(self, t: float) -> None:
-        """Discard the fixes stamped up to simulated time t (unfused), those still on their
-        way included."""
-        self._dropped_until = max(self._dropped_until, t)
-        with self._fix_lock:
-            while self._fixes and self._fixes[0][0] <= t + 1e-6:
-                self._fixes.popleft()
-
-    def _settled_at(self, t: float, local_ne: np.ndarray) -> bool:
-        """Settled on the setpoint at simulated time t, by the autopilot's latest telemetry
-        stamped up to t (deterministic given the trajectory, unless the link lost it)."""
-        # the latest by its stamp, not by arrival: a reordering radio delivers samples late
-        window = [x for x in list(self._local) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
-        if not window:
-            return False
-        sample = max(window, key=lambda x: x[0])
-        _, n, e, vn, ve = sample
-        near_m = max(self.spec.arrive_m, SETTLED_M)
-        return bool(np.hypot(n - local_ne[0], e - local_ne[1]) < near_m and np.hypot(vn, ve) < SETTLED_SPEED)
-
-    def wait_sim_time(self, t: float, timeout: float) -> None:
-        self.link.wait_for(lambda: self.sim_time_s >= t, timeout, f"simulated time {t:.1f} s")
+        self.intake = TelemetryIntake(link, spec.origin, self.estimator, spec.arrive_m)
 
     def _expect(self, seconds: float) -> None:
         """The decision loop promises its next step within `seconds`; past that it is hung and
@@ -212,26 +119,27 @@ class PolicyService:
         link.wait_heartbeat()
         link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
                       timeout, "GPS fix and home position")
-        link.wait_for(lambda: bool(self._fixes) or self.estimator.initialised, timeout, "a position estimate")
+        link.wait_for(lambda: self.intake.has_fixes() or self.estimator.initialised, timeout,
+                      "a position estimate")
         # the schedule's origin: the lattice point after the first fix this link heard (0 s when
         # the link was up before the vehicle started), not "now", which depends on how long
         # this process took to get going; the start cell comes from the fixes up to it
         period = self.spec.decision_period_s
-        self.t_ref = period * math.ceil((self._first_fix_t + 0.5) / period)
+        self.t_ref = period * math.ceil((self.intake.first_fix_t + 0.5) / period)
         self._register_launch()
         link.arm()
         link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
         link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
                       timeout, f"take-off to {self.spec.altitude_m} m")
-        self.wait_sim_time(self.t_ref, timeout)
+        self.intake.wait_sim_time(self.t_ref, timeout)
         if self._launch_registered:
             # the climb is flown on wall-clock command timing (AUTO.TAKEOFF holds the estimate
             # of the instant it was commanded): its fixes would leak centimetres of that timing
             # into the bias the setpoints are shifted by. The registered launch predicted
             # forward stands instead; fixes resume with the first leg.
-            self.drop_fixes_until(self.t_ref)
+            self.intake.drop_fixes_until(self.t_ref)
         else:
-            self.fuse_until(self.t_ref)
+            self.intake.fuse_until(self.t_ref)
         local = link.telemetry.local
         self._setpoint = np.array([local["n"], local["e"], -self.spec.altitude_m])
         self._expect(DECISION_DEADLINE_S)
@@ -245,19 +153,16 @@ class PolicyService:
         with that true position beside it, which averages the receiver's white noise out of
         the GPS bias, so the first cells are flown truly over their centres. (The vehicle waits
         disarmed for this companion, so those seconds are on the ground in every run.)"""
-        if not self.spec.register or self.link.telemetry.armed or self._first_fix_t is None:
+        if not self.spec.register or self.link.telemetry.armed or self.intake.first_fix_t is None:
             return
         # a window on a lattice of the simulated clock after the first fix heard, so a first
         # fix lost or late by a tick registers the same fixes (reproducible)
-        t_start = LAUNCH_S * math.ceil((self._first_fix_t + 0.5) / LAUNCH_S)
+        t_start = LAUNCH_S * math.ceil((self.intake.first_fix_t + 0.5) / LAUNCH_S)
         t_end = t_start + LAUNCH_S
         # every fix stamped up to t_end has arrived once a later one has
-        self.link.wait_for(lambda: self._last_gps_t > t_end + 1e-6, 30.0, f"GPS fixes after {t_end:.1f} s")
-        home = self._home_in_field()[:2]
-        with self._fix_lock:
-            due = [f for f in self._fixes if t_start - 1e-6 <= f[0] <= t_end + 1e-6]
-            while self._fixes and self._fixes[0][0] <= t_end + 1e-6:
-                self._fixes.popleft()
+        self.link.wait_for(lambda: self.intake.last_gps_t > t_end + 1e-6, 30.0, f"GPS fixes after {t_end:.1f} s")
+        home = self.intake.home_in_field()[:2]
+        due = self.intake.take_fixes(t_start, t_end)
         for ft, ned, eph, epv in due:
             self.estimator.update(ft, ned, eph, epv)
             post = self.estimator.posterior()
@@ -361,27 +266,19 @@ class PolicyService:
         out by its inertial fusion), so two readings of one spot a few seconds apart differ by
         the bias's drift only. (The companion's own p + b is noisier: readings of one cow over
         16 s scattered by +-1 m.) Without telemetry then: the companion's p + b."""
-        here = self._local_at(t)
-        return here if here is not None else self.field_to_local(self.estimator.reading_ne(t)[0])
+        here = self.intake.local_at(t)
+        return here if here is not None else self.intake.field_to_local(self.estimator.reading_ne(t)[0])
 
     def _remember(self, t: float, blobs: list) -> None:
         reading = self._reading_at(t)
         for b in blobs:
             self._found_at.append((t, reading + np.asarray(b.offset_ne(self.camera_height()))))
 
-    def _local_at(self, t: float) -> np.ndarray | None:
-        """The autopilot's (north, east) estimate at simulated time t by its telemetry."""
-        window = [x for x in list(self._local) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
-        if not window:
-            return None
-        _, n, e, _, _ = max(window, key=lambda x: x[0])
-        return np.array([n, e])
-
     def _fly_to(self, cell: np.ndarray) -> np.ndarray:
         """Send the new setpoint at once (the stream repeats it); returns it in local NED. The
         autopilot flies its GPS-fed estimate (truth + bias): the setpoint is shifted by the
         estimated bias so the vehicle is truly over the cell's centre."""
-        local = self.field_to_local(cell_to_ned(cell))
+        local = self.intake.field_to_local(cell_to_ned(cell))
         if self.spec.register:
             local = local + self.estimator.bias_ned[:2]
         return self._set_local(local)
@@ -406,9 +303,9 @@ class PolicyService:
         while True:
             frame, t_frame = self.frames.capture(t_at)
             if frame is None:
-                return None, max(t_at, self.sim_time_s)
+                return None, max(t_at, self.intake.sim_time_s)
             t_frame = t_at if t_frame is None else t_frame
-            if self._settled_at(t_frame, local):
+            if self.intake.settled_at(t_frame, local):
                 # a frame captured later than asked (this computer or its link too slow for
                 # the speed-up) is flown on, counted: that decision is not reproducible
                 self.log.late_frames += int(t_frame > t_at + 0.1)
@@ -426,18 +323,18 @@ class PolicyService:
         cell = np.clip(nearest_cell(post.mean_ned[:2]), [0, 0], [g.width - 1, g.height - 1])
         local = self._fly_to(cell)
         # the first decision: take-off and the first leg fit in three periods
-        t_k = (self.t_ref if self.t_ref is not None else self.sim_time_s) + 3 * self.spec.decision_period_s
+        t_k = (self.t_ref if self.t_ref is not None else self.intake.sim_time_s) + 3 * self.spec.decision_period_s
         if self._launch_registered:
             # likewise the climb's tail and the first leg, which starts at the wall-clock instant
             # this loop began: the hover's fixes before the first decision stand for them
-            self._dropped_until = max(self._dropped_until, t_k - self.spec.decision_period_s / 2)
+            self.intake.skip_fixes_until(t_k - self.spec.decision_period_s / 2)
         self.policy.reset(g, 1, int(self.rng.integers(1 << 30)))
         found = 0
         for move in range(max_moves + 1):
             for attempt in range(RECENTRE + 1):
                 frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
                 t0 = time.perf_counter()
-                self.fuse_until(t_k)
+                self.intake.fuse_until(t_k)
                 blobs = find_blobs(frame, self.det) if frame is not None else []
                 registered, _ = self._register_targets(t_k, blobs, cell)
                 below, aside = self._new_targets(t_k, blobs, cell)
@@ -447,7 +344,7 @@ class PolicyService:
                 # (a move relative to where the autopilot is: GPS-free but for 4 s of the
                 # bias's drift) and look again; no move of the policy's
                 self.log.recentred += 1
-                here = self._local_at(t_k)
+                here = self.intake.local_at(t_k)
                 if here is None:
                     break
                 local = self._set_local(here + np.asarray(aside[0].offset_ne(self.camera_height())))

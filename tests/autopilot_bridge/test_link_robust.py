@@ -210,12 +210,12 @@ def test_the_settle_check_reads_telemetry_from_long_ago_in_simulated_time() -> N
             service.take_off()
             # a sample that did arrive (20 % are lost, more when a loaded machine starves the
             # receiver), hovering: the check must still find it 70 simulated s later
-            t_hover, n, e, vn, ve = service._local[-1]
+            t_hover, n, e, vn, ve = service.intake.local_history[-1]
             assert np.hypot(vn, ve) < 1.0, "hovering"
             hold = np.array([n, e])
-            service.wait_sim_time(t_hover + 70.0, timeout=30)
-            assert service._settled_at(t_hover, hold), "its own telemetry of 70 simulated s ago"
-            assert not service._settled_at(t_hover, hold + 3.0), "3 m off is not settled"
+            service.intake.wait_sim_time(t_hover + 70.0, timeout=30)
+            assert service.intake.settled_at(t_hover, hold), "its own telemetry of 70 simulated s ago"
+            assert not service.intake.settled_at(t_hover, hold + 3.0), "3 m off is not settled"
             assert proxy.down.counts.lost > 20
         finally:
             service.land()
