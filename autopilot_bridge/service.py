@@ -13,13 +13,17 @@ stamped up to t_k, and t_{k+1} = t_k + decision_period_s. A leg that has not set
 (by the vehicle's own telemetry stamped before t_k) slips the schedule by half a period and
 is counted; so is a frame asked for after its time had passed. Take-off starts on a lattice
 point of the same clock.
+
+This module is the decision loop; the service owns one part per concern, each in its own
+module: `telemetry` (GPS fixes and the autopilot's estimate off the link, read by their
+stamps), `registration` (the launch point and targets as GPS-free position measurements, the
+memory of targets found), `pilot` (take-off, the setpoint stream and its deadline, landing)
+and `search_data` (the spec, log and progress it exchanges with the operator; re-exported
+here, so `from autopilot_bridge.service import SearchSpec` keeps working).
 """
 
 from __future__ import annotations
 
-import logging
-import math
-import threading
 import time
 from collections.abc import Callable
 
@@ -28,25 +32,17 @@ import numpy as np
 from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 
-from .detector import (
-    DetectorConfig,
-    blobs_to_view,
-    find_blobs,
-    valid_moves,
-)
+from .detector import DetectorConfig, blobs_to_view, find_blobs, valid_moves
 from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import LinkError, VehicleLink
+from .pilot import DECISION_DEADLINE_S, FRAME_DEADLINE_S, Pilot
 from .probmap import ProbabilisticVisitationMap, cell_probabilities
 from .registration import Registration
 from .search_data import Progress, SearchLog, SearchSpec, save_log
 from .telemetry import TelemetryIntake
 
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
-
-log = logging.getLogger(__name__)
-DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
-FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
 
 KEEP_FRAMES = 7
 #: a target in the believed cell but off the nadir by more than registration.FOUND_M is
@@ -55,8 +51,11 @@ RECENTRE = 2
 
 
 class PolicyService:
+    """The companion's search: owns the estimator, the visitation map, the frame requester and
+    the three parts (telemetry intake, registration, pilot), and runs the decision loop."""
+
     def __init__(self, link: VehicleLink, policy: Policy, spec: SearchSpec, seed: int = 0,
-                 detector: DetectorConfig | None = None, clock=time.monotonic,
+                 detector: DetectorConfig | None = None, clock: Callable[[], float] = time.monotonic,
                  on_progress: Callable[[Progress], None] | None = None) -> None:
         self.link, self.policy, self.spec = link, policy, spec
         self.on_progress = on_progress
@@ -71,97 +70,22 @@ class PolicyService:
         self.last_frame: tuple[int, np.ndarray, list] | None = None
         self.log = SearchLog()
         self.clock = clock
-        self._setpoint: np.ndarray | None = None  # local NED (autopilot frame)
-        self._stream_stop = threading.Event()
-        self._alive_until = float("inf")  # the decision loop's deadline (see _expect)
-        self.t_ref: float | None = None  # the schedule's origin on the simulated clock
-        self._setpoint_lock = threading.Lock()
         self.intake = TelemetryIntake(link, spec.origin, self.estimator, spec.arrive_m)
         self.registration = Registration(link, spec, self.estimator, self.intake)
-
-    def _expect(self, seconds: float) -> None:
-        """The decision loop promises its next step within `seconds`; past that it is hung and
-        the setpoint stream stops, so the vehicle's offboard-loss failsafe takes over (a
-        stream that outlives its decision loop would hold the vehicle in OFFBOARD for ever)."""
-        self._alive_until = time.monotonic() + seconds
-
-    def _stream_setpoints(self) -> None:
-        starved = False
-        while not self._stream_stop.is_set():
-            if time.monotonic() > self._alive_until:
-                if not starved:
-                    log.warning("decision loop silent past its deadline: setpoints stopped, the vehicle's "
-                                "offboard-loss failsafe takes over")
-                starved = True
-            elif self._setpoint is not None:
-                starved = False
-                with self._setpoint_lock:  # never resend an old setpoint after a new one
-                    self.link.set_position_ned(*self._setpoint)
-            time.sleep(0.05)
+        self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log)
 
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
-        link = self.link
-        link.wait_heartbeat()
-        link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
-                      timeout, "GPS fix and home position")
-        link.wait_for(lambda: self.intake.has_fixes() or self.estimator.initialised, timeout,
-                      "a position estimate")
-        # the schedule's origin: the lattice point after the first fix this link heard (0 s when
-        # the link was up before the vehicle started), not "now", which depends on how long
-        # this process took to get going; the start cell comes from the fixes up to it
-        period = self.spec.decision_period_s
-        self.t_ref = period * math.ceil((self.intake.first_fix_t + 0.5) / period)
-        self.registration.register_launch()
-        link.arm()
-        link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
-        link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
-                      timeout, f"take-off to {self.spec.altitude_m} m")
-        self.intake.wait_sim_time(self.t_ref, timeout)
-        if self.registration.launch_registered:
-            # the climb is flown on wall-clock command timing (AUTO.TAKEOFF holds the estimate
-            # of the instant it was commanded): its fixes would leak centimetres of that timing
-            # into the bias the setpoints are shifted by. The registered launch predicted
-            # forward stands instead; fixes resume with the first leg.
-            self.intake.drop_fixes_until(self.t_ref)
-        else:
-            self.intake.fuse_until(self.t_ref)
-        local = link.telemetry.local
-        self._setpoint = np.array([local["n"], local["e"], -self.spec.altitude_m])
-        self._expect(DECISION_DEADLINE_S)
-        threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()
-        time.sleep(0.3)  # PX4 wants a setpoint stream before OFFBOARD
-        link.set_mode("OFFBOARD")
+        """Register the launch point, climb and start the setpoint stream (see Pilot.take_off)."""
+        self.pilot.take_off(timeout)
 
-    def camera_height(self) -> float:
-        """The camera's height over the (flat) field (see SearchSpec.camera_height)."""
-        return self.spec.camera_height()
-
-    def _fly_to(self, cell: np.ndarray) -> np.ndarray:
-        """Send the new setpoint at once (the stream repeats it); returns it in local NED. The
-        autopilot flies its GPS-fed estimate (truth + bias): the setpoint is shifted by the
-        estimated bias so the vehicle is truly over the cell's centre."""
-        local = self.intake.field_to_local(cell_to_ned(cell))
-        if self.spec.register:
-            local = local + self.estimator.bias_ned[:2]
-        return self._set_local(local)
-
-    def _set_local(self, local: np.ndarray) -> np.ndarray:
-        self.log.setpoints_local.append([round(float(v), 4) for v in local])
-        self._expect(DECISION_DEADLINE_S)
-        with self._setpoint_lock:
-            self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
-            self.link.set_position_ned(*self._setpoint)
-        if self.link.telemetry.mode != "OFFBOARD":  # the autopilot dropped out (e.g. lost setpoints)
-            self.link.set_mode("OFFBOARD")
-        return local
-
-    def _capture(self, t_k: float, local: np.ndarray, cell: np.ndarray, timeout: float) -> tuple:
+    def _capture(self, t_k: float, local: np.ndarray, cell: np.ndarray,
+                 timeout: float) -> tuple[np.ndarray | None, float]:
         """The frame of decision k: captured at simulated time t_k once the leg has settled,
         else at the next half-period (a slip). Returns (frame or None, its simulated time)."""
         half = self.spec.decision_period_s / 2
         deadline = time.monotonic() + timeout
-        self._expect(timeout + FRAME_DEADLINE_S)
+        self.pilot.expect(timeout + FRAME_DEADLINE_S)
         t_at = t_k
         while True:
             frame, t_frame = self.frames.capture(t_at)
@@ -184,9 +108,10 @@ class PolicyService:
         t_start = self.clock()
         post = self.estimator.posterior()
         cell = np.clip(nearest_cell(post.mean_ned[:2]), [0, 0], [g.width - 1, g.height - 1])
-        local = self._fly_to(cell)
+        local = self.pilot.fly_to(cell)
         # the first decision: take-off and the first leg fit in three periods
-        t_k = (self.t_ref if self.t_ref is not None else self.intake.sim_time_s) + 3 * self.spec.decision_period_s
+        t_ref = self.pilot.t_ref if self.pilot.t_ref is not None else self.intake.sim_time_s
+        t_k = t_ref + 3 * self.spec.decision_period_s
         if self.registration.launch_registered:
             # likewise the climb's tail and the first leg, which starts at the wall-clock instant
             # this loop began: the hover's fixes before the first decision stand for them
@@ -210,9 +135,9 @@ class PolicyService:
                 here = self.intake.local_at(t_k)
                 if here is None:
                     break
-                local = self._set_local(here + np.asarray(aside[0].offset_ne(self.camera_height())))
+                local = self.pilot.set_local(here + np.asarray(aside[0].offset_ne(self.spec.camera_height())))
                 t_k = t_k + self.spec.decision_period_s
-            height = self.camera_height()
+            height = self.spec.camera_height()
             self.log.blobs.append([[round(v, 3) for v in b.offset_ne(height)] for b in blobs])
             self.log.registered.append(registered)
             post = self.estimator.posterior(t_k)
@@ -266,7 +191,7 @@ class PolicyService:
                 # view in as an expectation over it, as in the grid world's GPS evaluation
                 position_prob=None if exact else self.pmap.current[None].astype(np.float32),
             )
-            self._expect(DECISION_DEADLINE_S)
+            self.pilot.expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])
             stay = False
             if not obs.valid[0, a]:
@@ -277,17 +202,15 @@ class PolicyService:
             self.log.decision_ms.append(1e3 * (time.perf_counter() - t0))
             if not stay:
                 cell = cell + DELTAS[a]
-                local = self._fly_to(cell)
+                local = self.pilot.fly_to(cell)
             t_k = t_k + self.spec.decision_period_s
         self.log.wall_s = self.clock() - t_start
         return self.log
 
     def stop_setpoints(self) -> None:
         """Stop streaming OFFBOARD setpoints (before handing the vehicle to an AUTO mode)."""
-        self._stream_stop.set()
+        self.pilot.stop_setpoints()
 
     def land(self, timeout: float = 60.0) -> None:
-        self._stream_stop.set()
-        self.link.land()
-        self.link.wait_for(lambda: not self.link.telemetry.armed, timeout, "landing and disarm")
-
+        """Stop the setpoint stream, land and wait for the vehicle to disarm."""
+        self.pilot.land(timeout)

@@ -97,12 +97,12 @@ def test_a_hung_decision_loop_stops_the_setpoints_and_the_vehicle_returns(sitl_f
     try:
         service.take_off()
         assert link.telemetry.mode == "OFFBOARD" or _until(lambda: sitl.vehicle.mode == "OFFBOARD", 3)
-        # hung: no _expect() again; the stream's deadline (DECISION_DEADLINE_S) runs out
+        # hung: no pilot.expect() again; the stream's deadline (DECISION_DEADLINE_S) runs out
         assert _until(lambda: sitl.vehicle.mode == "AUTO.LOITER", 10)
         assert _until(lambda: sitl.vehicle.mode == "AUTO.RTL", 5)
         assert link.telemetry.heartbeat_time > 0
     finally:
-        service._stream_stop.set()
+        service.stop_setpoints()
         link.close()
 
 
