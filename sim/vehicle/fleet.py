@@ -22,6 +22,7 @@ import pybullet as p
 
 from .controller import BatchController, Gains
 from .frames import ned_yaw_to_enu
+from .free_flight import FreeFlight, body_to_world, matrices
 from .model import VehicleState
 from .quadrotor import _WORLD_FRAME, PHYSICS_HZ, Airframe
 
@@ -67,13 +68,27 @@ class FleetMember:
 
 
 class QuadrotorFleet:
-    def __init__(self, n: int, airframe: Airframe | None = None, gains: Gains | None = None) -> None:
+    """N quadrotors in one PyBullet world. In the air (above `FREE_ABOVE_M`) a vehicle's body
+    is stepped by `free_flight.FreeFlight`, Bullet's own free-body step in numpy over the
+    fleet (the same bits: test_free_flight.py), so a fleet in the air makes no PyBullet call;
+    near the ground (below `BULLET_BELOW_M`) PyBullet steps it, for the ground contact.
+    `free_flight=False` steps every body in PyBullet always (the reference the tests fly)."""
+
+    #: a vehicle in PyBullet goes to the numpy step above this height (m, world z of its centre)
+    FREE_ABOVE_M = 1.0
+    #: ... and back to PyBullet below this one: far above any contact (the body's half diagonal
+    #: is 0.25 m, Bullet's contact distances centimetres; at the 100 m/s velocity clamp a step is 0.42 m)
+    BULLET_BELOW_M = 0.75
+
+    def __init__(self, n: int, airframe: Airframe | None = None, gains: Gains | None = None,
+                 free_flight: bool = True) -> None:
         if n < 1:
             raise ValueError(f"a fleet needs at least one vehicle (got {n})")
         self.n, self.af = n, airframe or Airframe()
         af = self.af
         self.cid = p.connect(p.DIRECT)
-        p.setGravity(0, 0, -9.81, physicsClientId=self.cid)
+        gravity = (0.0, 0.0, -9.81)
+        p.setGravity(*gravity, physicsClientId=self.cid)
         p.setTimeStep(1.0 / PHYSICS_HZ, physicsClientId=self.cid)
         ground = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=self.cid)
         self.ground = p.createMultiBody(0, ground, physicsClientId=self.cid)
@@ -102,6 +117,9 @@ class QuadrotorFleet:
         self._alloc_inv_t = np.linalg.inv(alloc).T
         # (4, 3): per rotor, body torque per (rad/s)^2 (roll y kf, pitch -x kf, yaw spin km)
         self._rotor_torque = np.stack([af.kf * rotors[:, 1], -af.kf * rotors[:, 0], spin * af.km], axis=1)
+        # Bullet's own mass and inertia diagonal (from the box shape), for the numpy step
+        info = p.getDynamicsInfo(self.bodies[0], -1, physicsClientId=self.cid)
+        self._free_flight = FreeFlight(info[0], info[2], gravity, 1.0 / PHYSICS_HZ) if free_flight else None
         self.omega = np.zeros((n, 4))
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.zeros(n, dtype=np.int64)
@@ -111,7 +129,17 @@ class QuadrotorFleet:
         self.yaw = np.full(n, np.pi / 2)
         self.time = 0.0
         self._masks: tuple | None = None  # _mode_masks
-        self._last_read: tuple | None = None  # the world as _update_states read it (_substep)
+        # the world now, component first (the numpy step's layout): positions (3, N), angular
+        # then linear velocities (6, N), Bullet's m_baseQuat of the vehicles in free flight (4, N),
+        # the orientations PyBullet reports for the others (N, 4), rotations body to world (N, 3, 3)
+        self._p, self._wv = np.zeros((3, n)), np.zeros((6, n))
+        self._q = np.zeros((4, n))
+        self._q[3] = 1.0  # the rows of vehicles in PyBullet are stepped but unused: keep them unit quaternions
+        self._quat = np.zeros((n, 4))
+        self._rot = np.zeros((n, 3, 3))
+        self._m: np.ndarray | None = None  # matrices(self._q) (9, N), when every vehicle is free
+        self.free = np.zeros(n, dtype=bool)  # stepped by the numpy step (in the air), not PyBullet
+        self._read_bullet(np.arange(n))
         self.states = [VehicleState() for _ in range(n)]
         self.members = [FleetMember(self, i) for i in range(n)]
         self._update_states()
@@ -126,8 +154,7 @@ class QuadrotorFleet:
         s.armed = self.armed[i] = True
         self._masks = None
         self.ctrl.reset(i)
-        pos, _ = p.getBasePositionAndOrientation(self.bodies[i], self.cid)
-        self.target[i] = pos
+        self.target[i] = self._p[:, i]
         self.mode[i] = IDLE
         return True
 
@@ -165,31 +192,24 @@ class QuadrotorFleet:
             self._substep()
         self._update_states()
 
-    def _read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(N, 3) positions, (N, 3, 3) rotations, (N, 3) linear and angular velocities (ENU),
-        gathered into one flat list and one array: PyBullet answers per body. The rotations
-        from the quaternions as PyBullet's getMatrixFromQuaternion makes them (btMatrix3x3's
-        setRotation, double precision): the same numbers, without a call per body."""
-        cid, flat = self.cid, []
-        for b in self.bodies:
-            pos, quat = p.getBasePositionAndOrientation(b, cid)
-            lin, ang = p.getBaseVelocity(b, cid)
+    def _read_bullet(self, rows: np.ndarray) -> None:
+        """Read the bodies `rows` from PyBullet into the state arrays (PyBullet answers per
+        body). Their rotations from the quaternions as getMatrixFromQuaternion makes them
+        (btMatrix3x3's setRotation, free_flight.matrices): the same numbers, without a call per body."""
+        cid, flat, bodies = self.cid, [], self.bodies
+        for i in rows.tolist():
+            pos, quat = p.getBasePositionAndOrientation(bodies[i], cid)
+            lin, ang = p.getBaseVelocity(bodies[i], cid)
             flat += pos
-            flat += lin
             flat += ang
+            flat += lin
             flat += quat
-        a = np.array(flat).reshape(self.n, 13)
-        x, y, z, w = a[:, 9], a[:, 10], a[:, 11], a[:, 12]
-        s = 2.0 / (x * x + y * y + z * z + w * w)
-        xs, ys, zs = x * s, y * s, z * s
-        wx, wy, wz = w * xs, w * ys, w * zs
-        xx, xy, xz = x * xs, x * ys, x * zs
-        yy, yz, zz = y * ys, y * zs, z * zs
-        rot = np.empty((self.n, 3, 3))
-        rot[:, 0, 0], rot[:, 0, 1], rot[:, 0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
-        rot[:, 1, 0], rot[:, 1, 1], rot[:, 1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
-        rot[:, 2, 0], rot[:, 2, 1], rot[:, 2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
-        return a[:, 0:3], rot, a[:, 3:6], a[:, 6:9]
+        a = np.array(flat).reshape(len(rows), 13).T
+        rot = matrices(a[9:13]).T.reshape(-1, 3, 3)  # setRotation(quat): body to world, row major
+        if len(rows) == self.n:
+            self._p, self._wv, self._quat, self._rot = a[0:3], a[3:9], a[9:13].T, rot
+        else:
+            self._p[:, rows], self._wv[:, rows], self._quat[rows], self._rot[rows] = a[0:3], a[3:9], a[9:13].T, rot
 
     def _mode_masks(self) -> tuple:
         """(flying, any flying, all flying, velocity mask or None, land mask or None, idle spin):
@@ -204,10 +224,7 @@ class QuadrotorFleet:
 
     def _substep(self) -> None:
         h, af = 1.0 / PHYSICS_HZ, self.af
-        # the state read for the last step's states is the world now (only stepSimulation moves
-        # it): one read of 16 bodies a step fewer
-        read, self._last_read = self._last_read, None
-        pos, rot, lin, ang = read if read is not None else self._read()
+        pos, rot, lin, ang = self._p.T, self._rot, self._wv[3:6].T, self._wv[0:3].T  # (N, 3) views, (N, 3, 3)
         flying, any_flying, all_flying, velocity, land, spin = self._mode_masks()
         w_cmd = spin.copy()  # idle spin, or stopped
         if any_flying:
@@ -234,20 +251,60 @@ class QuadrotorFleet:
         body_torque = q @ self._rotor_torque
         force = (af.kf * q.sum(axis=1))[:, None] * rot[:, :, 2] - af.drag * lin
         torque = (rot * body_torque[:, None, :]).sum(axis=2)
-        cid = self.cid
-        for b, fo, to, po in zip(self.bodies, force.tolist(), torque.tolist(), pos.tolist(), strict=True):
-            p.applyExternalForce(b, -1, fo, po, _WORLD_FRAME, cid)
-            p.applyExternalTorque(b, -1, to, _WORLD_FRAME, cid)
-        p.stepSimulation(cid)
+        free = self.free
+        n_free = int(free.sum()) if self._free_flight is not None else 0
+        if n_free < self.n:  # PyBullet steps the vehicles near the ground (and its other bodies)
+            cid, bullet = self.cid, np.flatnonzero(~free)
+            for i, fo, to, po in zip(bullet.tolist(), force[bullet].tolist(), torque[bullet].tolist(),
+                                     pos[bullet].tolist(), strict=True):
+                p.applyExternalForce(self.bodies[i], -1, fo, po, _WORLD_FRAME, cid)
+                p.applyExternalTorque(self.bodies[i], -1, to, _WORLD_FRAME, cid)
+            p.stepSimulation(cid)
+        if n_free:  # fresh arrays: pos and lin above stay this substep's start for the touch-down check
+            load = np.concatenate((torque.T, force.T))
+            p1, q1, wv1, m1 = self._free_flight.step(self._p, self._q, self._wv, load, self._m)
+            rot1 = body_to_world(m1)  # M(q)^T: exactly the matrix of conj(q), PyBullet's orientation
+            if n_free == self.n:
+                self._p, self._q, self._wv, self._rot, self._m = p1, q1, wv1, rot1, m1
+            else:  # the others' rows are read from PyBullet below (their q rows are unused)
+                self._p, self._q, self._wv, self._rot, self._m = p1, q1, wv1, rot1.copy(), m1
+        if n_free < self.n:
+            self._read_bullet(np.flatnonzero(~free))
         self.time += h
         if land is not None:
             touch = land & self.armed & (pos[:, 2] < af.size[2] / 2 + 0.03) & (np.abs(lin[:, 2]) < 0.2)
             for i in np.flatnonzero(touch):
                 self.disarm(int(i), force=True)
+        if self._free_flight is not None:
+            self._switch()
+
+    def _switch(self) -> None:
+        """Vehicles that climbed above FREE_ABOVE_M go to the numpy step: Bullet's m_baseQuat is
+        the conjugate of the orientation PyBullet reported (equal to the last bit or so: the
+        report went through a matrix). Vehicles that came down below BULLET_BELOW_M go back:
+        their bodies are put where the numpy step has them (resetBasePositionAndOrientation
+        stores conj(q), which is q exactly) with its velocities."""
+        z = self._p[2]
+        up = ~self.free & (z > self.FREE_ABOVE_M)
+        down = self.free & (z < self.BULLET_BELOW_M)
+        if up.any():
+            qr = self._quat[up].T
+            self._q[:, up] = [-qr[0], -qr[1], -qr[2], qr[3]]
+            self.free |= up
+            self._m = None
+        if down.any():
+            cid = self.cid
+            for i in np.flatnonzero(down).tolist():
+                x, y, zq, w = self._q[:, i].tolist()
+                b = self.bodies[i]
+                p.resetBasePositionAndOrientation(b, self._p[:, i].tolist(), (-x, -y, -zq, w), cid)
+                p.resetBaseVelocity(b, self._wv[3:6, i].tolist(), self._wv[0:3, i].tolist(), cid)
+            self.free &= ~down
+            self._m = None
 
     def _update_states(self) -> None:
-        pos, rot, lin, ang = self._last_read = self._read()
-        wb = (ang[:, :, None] * rot).sum(axis=1)
+        pos, rot, lin = self._p.T, self._rot, self._wv[3:6].T
+        wb = (self._wv[0:3].T[:, :, None] * rot).sum(axis=1)
         ground_z = self.af.size[2] / 2
         local = pos - self.offset
         # fresh arrays each update: every state gets rows of its own, never shared with the next

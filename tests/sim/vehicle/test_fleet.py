@@ -75,22 +75,35 @@ def test_a_member_is_stepped_by_its_fleet_only() -> None:
         KinematicFleet(0)
 
 
-def test_the_fleet_reads_the_rotations_pybullet_gives() -> None:
+@pytest.mark.parametrize("free_flight", [False, True])
+def test_the_fleet_reads_the_rotations_pybullet_gives(free_flight: bool) -> None:
     """QuadrotorFleet turns the bodies' quaternions into rotations itself (one numpy pass, not a
-    getMatrixFromQuaternion call per body per substep): the same numbers, tilted and yawed."""
+    getMatrixFromQuaternion call per body per substep): the same numbers, tilted and yawed.
+    Vehicles in free flight (numpy step) hold Bullet's m_baseQuat q instead: their rotation is
+    M(q)^T, within a rounding of the matrix PyBullet makes of the orientation it reports for q."""
     import pybullet as p
 
-    fleet = QuadrotorFleet(4)
+    from sim.vehicle.free_flight import matrices
+
+    fleet = QuadrotorFleet(4, free_flight=free_flight)
     try:
         for i, m in enumerate(fleet.members):
             m.arm()
             m.set_position_target(np.array([3.0 * i, -2.0, -3.0]), yaw=0.7 * i)
-        for _ in range(40):
+        for _ in range(100):
             fleet.step(0.02)
-        _, rot, _, _ = fleet._read()
-        for b, r in zip(fleet.bodies, rot, strict=True):
-            _, quat = p.getBasePositionAndOrientation(b, fleet.cid)
-            assert np.array_equal(r.ravel(), np.array(p.getMatrixFromQuaternion(quat)))
+        rot = fleet._rot
+        assert fleet.free.all() == free_flight, "at 3 m every vehicle flies free, or none does"
+        for i, (b, r) in enumerate(zip(fleet.bodies, rot, strict=True)):
+            if free_flight:  # put PyBullet's body where the numpy step has it, read it back
+                x, y, z, w = fleet._q[:, i]
+                assert np.array_equal(r, matrices(fleet._q[:, i:i + 1])[:, 0].reshape(3, 3).T)
+                p.resetBasePositionAndOrientation(b, fleet._p[:, i].tolist(), (-x, -y, -z, w), fleet.cid)
+                _, quat = p.getBasePositionAndOrientation(b, fleet.cid)
+                assert np.abs(r.ravel() - np.array(p.getMatrixFromQuaternion(quat))).max() < 1e-15
+            else:
+                _, quat = p.getBasePositionAndOrientation(b, fleet.cid)
+                assert np.array_equal(r.ravel(), np.array(p.getMatrixFromQuaternion(quat)))
         assert np.abs(rot[:, 2, :2]).max() > 0.01, "tilted: the test saw more than the identity"
     finally:
         fleet.close()
