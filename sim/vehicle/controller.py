@@ -42,11 +42,6 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
-def _bclip(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """np.clip without its Python-level dispatch (which costs ten ufunc calls on small arrays)."""
-    return np.minimum(np.maximum(x, lo), hi)
-
-
 class CascadedController:
     """One vehicle. Rotation matrices are PyBullet's getMatrixFromQuaternion: 9 floats, row
     major, body to world."""
@@ -131,8 +126,18 @@ class CascadedController:
 
 
 class BatchController:
-    """N vehicles with the same airframe: every argument carries a leading vehicle axis.
-    Rotation matrices (N, 3, 3) body to world."""
+    """N vehicles with the same airframe. The fleet calls the `_rows` methods: component-first
+    arrays, (3, N) vectors and (9, N) row-major rotations body to world, so every numpy call is
+    one plain operation on contiguous rows (with tens of vehicles each call costs more than its
+    arithmetic, and broadcasting or strided views cost several times a plain call). The
+    vehicle-first methods (N, 3) wrap them, for tests and other callers."""
+
+    # np.take rows: cross products a x b of stacked (a 0-2, b 3-5): a_y b_z - a_z b_y, ...
+    _CROSS_L, _CROSS_R = np.array([1, 2, 0, 2, 0, 1]), np.array([5, 3, 4, 4, 5, 3])
+    # the attitude error's six dot products from (y 0-2, z 3-5, x 6-8) and the rotation's columns:
+    # z.c1, y.c2 | x.c2, z.c0 | y.c0, x.c1, each as three products summed in order
+    _DOT_L = np.array([[3, 0, 6, 3, 0, 6], [4, 1, 7, 4, 1, 7], [5, 2, 8, 5, 2, 8]]).ravel()
+    _DOT_R = np.array([[1, 2, 2, 0, 0, 1], [4, 5, 5, 3, 3, 4], [7, 8, 8, 6, 6, 7]]).ravel()
 
     def __init__(self, n: int, mass: float, inertia: np.ndarray, gains: Gains | None = None) -> None:
         if n < 1:
@@ -141,68 +146,104 @@ class BatchController:
         self.J = np.asarray(inertia, dtype=float)
         if self.J.shape != (3, 3):
             raise ValueError(f"inertia must be 3 x 3 (got shape {self.J.shape})")
-        self.vel_int = np.zeros((n, 3))
+        diagonal = not (self.J - np.diag(np.diag(self.J))).any()
+        # J as rows to multiply by (J w for a diagonal J is J_ii w_i: the same numbers as J @ w)
+        self._jd = np.repeat(np.diag(self.J)[:, None], n, axis=1) if diagonal else None
+        self.vi = np.zeros((3, n))  # velocity integrators, component first
+        self._tan_tilt = math.tan(self.g.max_tilt)
+
+    @property
+    def vel_int(self) -> np.ndarray:
+        """(N, 3) view of the velocity integrators."""
+        return self.vi.T
 
     def reset(self, which: np.ndarray | slice | int = slice(None)) -> None:
-        self.vel_int[which] = 0.0
+        self.vi[:, which] = 0.0
+
+    def speed_limits(self, speed: np.ndarray) -> np.ndarray:
+        """(N,) horizontal speed limits from per-vehicle limits (NaN or <= 0 for the default)."""
+        g = self.g
+        return np.where(np.isfinite(speed) & (speed > 0), np.minimum(speed, g.max_speed), g.max_speed)
 
     def velocity_setpoint(self, pos: np.ndarray, target: np.ndarray, speed: np.ndarray) -> np.ndarray:
-        """speed (N,): per-vehicle limit, NaN or <= 0 for the default."""
+        """speed (N,): per-vehicle limit, NaN or <= 0 for the default. (N, 3)."""
+        return self.velocity_setpoint_rows(pos.T, target.T, self.speed_limits(speed)).T
+
+    def velocity_setpoint_rows(self, pos: np.ndarray, target: np.ndarray, vmax: np.ndarray) -> np.ndarray:
+        """(3, N) velocity setpoints for (3, N) positions and targets, vmax from speed_limits."""
         g = self.g
-        v = g.pos_p * (target - pos)
-        vmax = np.where(np.isfinite(speed) & (speed > 0), np.minimum(speed, g.max_speed), g.max_speed)
-        h = np.hypot(v[:, 0], v[:, 1])
-        scale = np.where(h > vmax, vmax / np.maximum(h, 1e-300), 1.0)
-        v[:, :2] *= scale[:, None]
-        v[:, 2] = _bclip(v[:, 2], -g.max_descent, g.max_climb)
+        v = (target - pos) * g.pos_p
+        h = np.hypot(v[0], v[1])
+        if (h > vmax).any():
+            v[0:2] *= np.where(h > vmax, vmax / np.maximum(h, 1e-300), 1.0)
+        np.minimum(np.maximum(v[2], -g.max_descent, out=v[2]), g.max_climb, out=v[2])
         return v
 
     def thrust_and_torque(
         self, rot: np.ndarray, vel: np.ndarray, omega_body: np.ndarray, vel_sp: np.ndarray, yaw_sp: np.ndarray,
         dt: float,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(N,) thrusts and (N, 3) body torques. Written component by component on (N,)
-        arrays: with tens of vehicles every numpy call costs more than its arithmetic, and
-        stack, einsum and cross cost several plain ones."""
-        g = self.g
+        """(N,) thrusts and (N, 3) body torques; rot (N, 3, 3) body to world."""
+        r9 = np.ascontiguousarray(rot.reshape(-1, 9).T)
+        thrust, torque = self.thrust_and_torque_rows(r9, vel.T, omega_body.T, vel_sp.T, np.cos(yaw_sp),
+                                                     np.sin(yaw_sp), dt)
+        return thrust, torque.T
+
+    def thrust_and_torque_rows(
+        self, r9: np.ndarray, vel: np.ndarray, wb: np.ndarray, vel_sp: np.ndarray, cos_yaw: np.ndarray,
+        sin_yaw: np.ndarray, dt: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) thrusts and (3, N) body torques tracking (3, N) velocity setpoints and yaws (given
+        as their cosines and sines: they change between steps, not substeps); r9 (9, N) row-major
+        rotations body to world, vel (3, N) world, wb (3, N) body rates. The maths of
+        CascadedController, in the same order up to rounding."""
+        g, m = self.g, self.m
         err = vel_sp - vel
-        vi = self.vel_int + err * dt * (np.abs(err) < 0.5)  # integrate only near the setpoint
-        vi = _bclip(vi, -2.0, 2.0)
-        self.vel_int = vi
-        acc = g.vel_p * err + g.vel_i * vi
-        az = _bclip(acc[:, 2], -0.7 * G, 1.0 * G)
-        hmax = math.tan(g.max_tilt) * (G + az)
-        h = np.hypot(acc[:, 0], acc[:, 1])
-        ms = self.m * np.minimum(1.0, hmax / np.maximum(h, 1e-300))  # tilt limit
-        fx, fy, fz = ms * acc[:, 0], ms * acc[:, 1], self.m * (az + G)
-        r00, r01, r02 = rot[:, 0, 0], rot[:, 0, 1], rot[:, 0, 2]
-        r10, r11, r12 = rot[:, 1, 0], rot[:, 1, 1], rot[:, 1, 2]
-        r20, r21, r22 = rot[:, 2, 0], rot[:, 2, 1], rot[:, 2, 2]
-        thrust = fx * r02 + fy * r12 + fz * r22
-        inv = 1.0 / np.sqrt(fx * fx + fy * fy + fz * fz)
-        zx, zy, zz = fx * inv, fy * inv, fz * inv
-        c, s = np.cos(yaw_sp), np.sin(yaw_sp)
-        yx, yy, yz = -zz * s, zz * c, zx * s - zy * c
-        n = np.sqrt(yx * yx + yy * yy + yz * yz)
+        vi = self.vi + (err * dt) * (np.abs(err) < 0.5)  # integrate only near the setpoint
+        np.minimum(np.maximum(vi, -2.0, out=vi), 2.0, out=vi)
+        self.vi = vi
+        acc = err * g.vel_p + vi * g.vel_i
+        az = np.minimum(np.maximum(acc[2], -0.7 * G), 1.0 * G)
+        hmax = (az + G) * self._tan_tilt  # tilt limit: horizontal acceleration <= tan(max_tilt) (g + a_z)
+        h = np.hypot(acc[0], acc[1])
+        f = np.empty_like(acc)
+        np.multiply(acc[0:2], np.minimum(hmax / np.maximum(h, 1e-300), 1.0) * m, out=f[0:2])
+        np.multiply(az + G, m, out=f[2])
+        fr = f * r9[2::3]  # f . (r02, r12, r22): the thrust along the body z axis
+        thrust = (fr[0] + fr[1]) + fr[2]
+        ff = f * f
+        z = f * (1.0 / np.sqrt((ff[0] + ff[1]) + ff[2]))
+        # desired attitude: body z along the force, nose towards the yaw (x_c), y = z x x_c
+        yz = np.empty((6, z.shape[1]))  # y (0-2), then z (3-5)
+        yz[3:6] = z
+        np.multiply(z[2], sin_yaw, out=yz[0])
+        np.negative(yz[0], out=yz[0])
+        np.multiply(z[2], cos_yaw, out=yz[1])
+        np.subtract(z[0] * sin_yaw, z[1] * cos_yaw, out=yz[2])
+        yy = yz[0:3] * yz[0:3]
+        n = np.sqrt((yy[0] + yy[1]) + yy[2])
         ok = n > 1e-6
         if ok.all():
-            yx, yy, yz = yx / n, yy / n, yz / n
+            yz[0:3] /= n
         else:  # force along the yaw axis: any heading will do
             safe = np.where(ok, n, 1.0)
-            yx, yy, yz = np.where(ok, yx / safe, -s), np.where(ok, yy / safe, c), np.where(ok, yz / safe, 0.0)
-        xx, xy, xz = yy * zz - yz * zy, yz * zx - yx * zz, yx * zy - yy * zx
-        e21 = (zx * r01 + zy * r11 + zz * r21) - (r02 * yx + r12 * yy + r22 * yz)
-        e02 = (xx * r02 + xy * r12 + xz * r22) - (r00 * zx + r10 * zy + r20 * zz)
-        e10 = (yx * r00 + yy * r10 + yz * r20) - (r01 * xx + r11 * xy + r21 * xz)
-        k = -0.5 * g.att_p
-        rate_sp = np.empty_like(err)
-        rate_sp[:, 0], rate_sp[:, 1] = k * e21, k * e02
-        rate_sp[:, 2] = _bclip(k * e10, -g.max_yaw_rate, g.max_yaw_rate)
-        w = omega_body
-        hw = w @ self.J.T
-        torque = (g.rate_p * (rate_sp - w)) @ self.J.T
-        torque[:, 0] += w[:, 1] * hw[:, 2] - w[:, 2] * hw[:, 1]
-        torque[:, 1] += w[:, 2] * hw[:, 0] - w[:, 0] * hw[:, 2]
-        torque[:, 2] += w[:, 0] * hw[:, 1] - w[:, 1] * hw[:, 0]
-        torque[:, 2] = _bclip(torque[:, 2], -g.max_yaw_torque, g.max_yaw_torque)
+            yz[0:3] = np.where(ok, yz[0:3] / safe, [-sin_yaw, cos_yaw, np.zeros_like(cos_yaw)])
+        prod = yz.take(self._CROSS_L, axis=0) * yz.take(self._CROSS_R, axis=0)
+        yzx = np.concatenate((yz, prod[0:3] - prod[3:6]))  # y, z, x = y x z
+        # attitude error: vee(R_des^T R - R^T R_des) / 2 from the six dot products
+        prod = yzx.take(self._DOT_L, axis=0) * r9.take(self._DOT_R, axis=0)
+        dots = (prod[0:6] + prod[6:12]) + prod[12:18]
+        rate_sp = (dots[0::2] - dots[1::2]) * (-0.5 * g.att_p)  # from (e21, e02, e10)
+        np.minimum(np.maximum(rate_sp[2], -g.max_yaw_rate, out=rate_sp[2]), g.max_yaw_rate, out=rate_sp[2])
+        # rate loop through the inertia, plus the gyroscopic term w x J w
+        if self._jd is not None:
+            torque = (rate_sp - wb) * g.rate_p * self._jd
+            wh = np.concatenate((wb, wb * self._jd))
+        else:
+            torque = self.J @ ((rate_sp - wb) * g.rate_p)
+            wh = np.concatenate((wb, self.J @ wb))
+        prod = wh.take(self._CROSS_L, axis=0) * wh.take(self._CROSS_R, axis=0)
+        torque += prod[0:3] - prod[3:6]
+        # yaw authority comes from differential rotor drag: never let it starve thrust or tilt
+        np.minimum(np.maximum(torque[2], -g.max_yaw_torque, out=torque[2]), g.max_yaw_torque, out=torque[2])
         return np.maximum(thrust, 0.0), torque

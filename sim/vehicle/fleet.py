@@ -22,7 +22,7 @@ import pybullet as p
 
 from .controller import BatchController, Gains
 from .frames import ned_yaw_to_enu
-from .free_flight import FreeFlight, body_to_world, matrices
+from .free_flight import FreeFlight, matrices
 from .model import VehicleState
 from .quadrotor import _WORLD_FRAME, PHYSICS_HZ, Airframe
 
@@ -114,13 +114,14 @@ class QuadrotorFleet:
         rotors = np.array([[d, -d, 0], [-d, d, 0], [d, d, 0], [-d, -d, 0]], dtype=float)
         spin = np.array([1, 1, -1, -1], dtype=float)
         alloc = np.vstack([np.ones(4), rotors[:, 1], -rotors[:, 0], spin * af.km / af.kf])
-        self._alloc_inv_t = np.linalg.inv(alloc).T
-        # (4, 3): per rotor, body torque per (rad/s)^2 (roll y kf, pitch -x kf, yaw spin km)
-        self._rotor_torque = np.stack([af.kf * rotors[:, 1], -af.kf * rotors[:, 0], spin * af.km], axis=1)
+        self._alloc_inv = np.linalg.inv(alloc)  # rotor thrusts from (thrust, torques)
+        # (3, 4): body torque per rotor (rad/s)^2 (roll y kf, pitch -x kf, yaw spin km)
+        self._rotor_torque = np.stack([af.kf * rotors[:, 1], -af.kf * rotors[:, 0], spin * af.km])
+        self._lag = min(1.0, (1.0 / PHYSICS_HZ) / af.motor_tau)
         # Bullet's own mass and inertia diagonal (from the box shape), for the numpy step
         info = p.getDynamicsInfo(self.bodies[0], -1, physicsClientId=self.cid)
         self._free_flight = FreeFlight(info[0], info[2], gravity, 1.0 / PHYSICS_HZ) if free_flight else None
-        self.omega = np.zeros((n, 4))
+        self._om = np.zeros((4, n))  # rotor speeds, rad/s, rotor first
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.zeros(n, dtype=np.int64)
         self.target = self.offset + [0.0, 0.0, half[2]]
@@ -131,12 +132,13 @@ class QuadrotorFleet:
         self._masks: tuple | None = None  # _mode_masks
         # the world now, component first (the numpy step's layout): positions (3, N), angular
         # then linear velocities (6, N), Bullet's m_baseQuat of the vehicles in free flight (4, N),
-        # the orientations PyBullet reports for the others (N, 4), rotations body to world (N, 3, 3)
+        # the orientations PyBullet reports for the others (N, 4), rotations body to world (9, N:
+        # row-major entries)
         self._p, self._wv = np.zeros((3, n)), np.zeros((6, n))
         self._q = np.zeros((4, n))
         self._q[3] = 1.0  # the rows of vehicles in PyBullet are stepped but unused: keep them unit quaternions
         self._quat = np.zeros((n, 4))
-        self._rot = np.zeros((n, 3, 3))
+        self._r9 = np.zeros((9, n))
         self._m: np.ndarray | None = None  # matrices(self._q) (9, N), when every vehicle is free
         self.free = np.zeros(n, dtype=bool)  # stepped by the numpy step (in the air), not PyBullet
         self._read_bullet(np.arange(n))
@@ -165,7 +167,7 @@ class QuadrotorFleet:
         s.armed = self.armed[i] = False
         self._masks = None
         self.mode[i] = IDLE
-        self.omega[i] = 0.0
+        self._om[:, i] = 0.0
         return True
 
     def set_position_target(self, i: int, position_ned, yaw=None, speed=None) -> None:
@@ -205,77 +207,94 @@ class QuadrotorFleet:
             flat += lin
             flat += quat
         a = np.array(flat).reshape(len(rows), 13).T
-        rot = matrices(a[9:13]).T.reshape(-1, 3, 3)  # setRotation(quat): body to world, row major
+        r9 = matrices(a[9:13])  # setRotation(quat): body to world
         if len(rows) == self.n:
-            self._p, self._wv, self._quat, self._rot = a[0:3], a[3:9], a[9:13].T, rot
+            self._p, self._wv, self._quat, self._r9 = a[0:3], a[3:9], a[9:13].T, r9
         else:
-            self._p[:, rows], self._wv[:, rows], self._quat[rows], self._rot[rows] = a[0:3], a[3:9], a[9:13].T, rot
+            self._p[:, rows], self._wv[:, rows], self._quat[rows], self._r9[:, rows] = a[0:3], a[3:9], a[9:13].T, r9
 
     def _mode_masks(self) -> tuple:
-        """(flying, any flying, all flying, velocity mask or None, land mask or None, idle spin):
-        the commands change between steps, not between substeps (a touch-down clears them)."""
+        """(flying, any flying, all flying, velocity mask or None, land mask or None, idle spin,
+        per-step rows): the commands change between steps, not between substeps (a touch-down
+        clears them). The rows: targets (3, N), speed limits, cosines and sines of the yaws,
+        velocity commands (3, N)."""
         if self._masks is None:
             flying = self.armed & (self.mode != IDLE)
             velocity, land = self.mode == VELOCITY, self.mode == LAND
-            spin = np.repeat((self.armed * (0.15 * self.af.max_omega))[:, None], 4, axis=1)
+            spin = np.repeat((self.armed * (0.15 * self.af.max_omega))[None], 4, axis=0)
+            rows = (np.ascontiguousarray(self.target.T), self.ctrl.speed_limits(self.speed), np.cos(self.yaw),
+                    np.sin(self.yaw), np.ascontiguousarray(self.vel_cmd.T))
             self._masks = (flying, bool(flying.any()), bool(flying.all()), velocity if velocity.any() else None,
-                           land if land.any() else None, spin)
+                           land if land.any() else None, spin, rows)
         return self._masks
 
+    #: np.take rows: R^T w from (9, N) rotations and (6, N) (w, v), and R b from a (3, N) b
+    _WB_R, _WB_W = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8]), np.array([0, 0, 0, 1, 1, 1, 2, 2, 2])
+    _RB_B = np.array([0, 1, 2, 0, 1, 2, 0, 1, 2])
+    #: (9, N) matrices(q) (world to body) -> body to world, row major: the transpose
+    _TRANSPOSE = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
+
     def _substep(self) -> None:
+        """One 240 Hz step of every vehicle, component-first arrays throughout (few numpy calls,
+        each on contiguous rows: with 16 vehicles a call costs more than its arithmetic)."""
         h, af = 1.0 / PHYSICS_HZ, self.af
-        pos, rot, lin, ang = self._p.T, self._rot, self._wv[3:6].T, self._wv[0:3].T  # (N, 3) views, (N, 3, 3)
-        flying, any_flying, all_flying, velocity, land, spin = self._mode_masks()
+        pos, wv, r9 = self._p, self._wv, self._r9
+        lin = wv[3:6]
+        flying, any_flying, all_flying, velocity, land, spin, rows = self._mode_masks()
         w_cmd = spin.copy()  # idle spin, or stopped
         if any_flying:
-            wb = (ang[:, :, None] * rot).sum(axis=1)  # R^T w, per vehicle
-            vel_sp = self.ctrl.velocity_setpoint(pos, self.target, self.speed)
+            target, vmax, cos_yaw, sin_yaw, vel_cmd = rows
+            prod = r9.take(self._WB_R, axis=0) * wv.take(self._WB_W, axis=0)  # R[i, j] w_i
+            wb = (prod[0:3] + prod[3:6]) + prod[6:9]  # R^T w: body rates
+            vel_sp = self.ctrl.velocity_setpoint_rows(pos, target, vmax)
             if velocity is not None:
-                vel_sp[velocity] = self.vel_cmd[velocity]
+                vel_sp[:, velocity] = vel_cmd[:, velocity]
             if land is not None:  # hold horizontal position, descend
-                vel_sp[land, :2] = 0.0
-                vel_sp[land, 2] = np.where(pos[land, 2] > 1.0, -0.7, -0.4)
-            held = self.ctrl.vel_int
-            thrust, torque = self.ctrl.thrust_and_torque(rot, lin, wb, vel_sp, self.yaw, h)
+                vel_sp[0:2, land] = 0.0
+                vel_sp[2, land] = np.where(pos[2, land] > 1.0, -0.7, -0.4)
+            held = self.ctrl.vi
+            thrust, torque = self.ctrl.thrust_and_torque_rows(r9, lin, wb, vel_sp, cos_yaw, sin_yaw, h)
             if not all_flying:  # only flying vehicles integrate
-                self.ctrl.vel_int[~flying] = held[~flying]
-            f = thrust[:, None] * self._alloc_inv_t[0] + torque @ self._alloc_inv_t[1:]
+                self.ctrl.vi[:, ~flying] = held[:, ~flying]
+            f = self._alloc_inv @ np.concatenate((thrust[None], torque))  # (4, N) rotor thrusts
             w_fly = np.sqrt(np.maximum(f, 0.0) * (1.0 / af.kf))
             if all_flying:
                 w_cmd = w_fly
             else:
-                w_cmd[flying] = w_fly[flying]
+                w_cmd[:, flying] = w_fly[:, flying]
         np.minimum(w_cmd, af.max_omega, out=w_cmd)
-        self.omega += (w_cmd - self.omega) * min(1.0, h / af.motor_tau)
-        q = self.omega * self.omega
-        body_torque = q @ self._rotor_torque
-        force = (af.kf * q.sum(axis=1))[:, None] * rot[:, :, 2] - af.drag * lin
-        torque = (rot * body_torque[:, None, :]).sum(axis=2)
+        self._om += (w_cmd - self._om) * self._lag
+        q = self._om * self._om
+        bt = self._rotor_torque @ q  # body torque (3, N)
+        prod = r9 * bt.take(self._RB_B, axis=0)  # R[i, j] b_j
+        load = np.empty((6, self.n))  # torque, force: world, at the centre of mass
+        np.add(prod[0::3] + prod[1::3], prod[2::3], out=load[0:3])
+        np.subtract(r9[2::3] * (q.sum(axis=0) * af.kf), lin * af.drag, out=load[3:6])
         free = self.free
         n_free = int(free.sum()) if self._free_flight is not None else 0
         if n_free < self.n:  # PyBullet steps the vehicles near the ground (and its other bodies)
             cid, bullet = self.cid, np.flatnonzero(~free)
-            for i, fo, to, po in zip(bullet.tolist(), force[bullet].tolist(), torque[bullet].tolist(),
-                                     pos[bullet].tolist(), strict=True):
+            lt = load.T
+            for i, to, fo, po in zip(bullet.tolist(), lt[bullet, 0:3].tolist(), lt[bullet, 3:6].tolist(),
+                                     pos.T[bullet].tolist(), strict=True):
                 p.applyExternalForce(self.bodies[i], -1, fo, po, _WORLD_FRAME, cid)
                 p.applyExternalTorque(self.bodies[i], -1, to, _WORLD_FRAME, cid)
             p.stepSimulation(cid)
         if n_free:  # fresh arrays: pos and lin above stay this substep's start for the touch-down check
-            load = np.concatenate((torque.T, force.T))
-            p1, q1, wv1, m1 = self._free_flight.step(self._p, self._q, self._wv, load, self._m)
-            rot1 = body_to_world(m1)  # M(q)^T: exactly the matrix of conj(q), PyBullet's orientation
-            if n_free == self.n:
-                self._p, self._q, self._wv, self._rot, self._m = p1, q1, wv1, rot1, m1
-            else:  # the others' rows are read from PyBullet below (their q rows are unused)
-                self._p, self._q, self._wv, self._rot, self._m = p1, q1, wv1, rot1.copy(), m1
-        if n_free < self.n:
+            p1, q1, wv1, m1 = self._free_flight.step(pos, self._q, wv, load, self._m)
+            # M(q)^T: exactly the matrix of conj(q), the orientation PyBullet would report
+            self._p, self._q, self._wv, self._r9, self._m = p1, q1, wv1, m1.take(self._TRANSPOSE, axis=0), m1
+        if n_free < self.n:  # the others' rows from PyBullet (their q rows are unused)
             self._read_bullet(np.flatnonzero(~free))
         self.time += h
         if land is not None:
-            touch = land & self.armed & (pos[:, 2] < af.size[2] / 2 + 0.03) & (np.abs(lin[:, 2]) < 0.2)
+            touch = land & self.armed & (pos[2] < af.size[2] / 2 + 0.03) & (np.abs(lin[2]) < 0.2)
             for i in np.flatnonzero(touch):
                 self.disarm(int(i), force=True)
         if self._free_flight is not None:
+            z = self._p[2]
+            if self.free.all() and z.min() >= self.BULLET_BELOW_M:
+                return  # the common case: every vehicle in the air
             self._switch()
 
     def _switch(self) -> None:
@@ -303,8 +322,10 @@ class QuadrotorFleet:
             self._m = None
 
     def _update_states(self) -> None:
-        pos, rot, lin = self._p.T, self._rot, self._wv[3:6].T
-        wb = (self._wv[0:3].T[:, :, None] * rot).sum(axis=1)
+        r9, lin = self._r9, self._wv[3:6].T
+        pos = self._p.T
+        prod = r9.take(self._WB_R, axis=0) * self._wv.take(self._WB_W, axis=0)
+        wb = ((prod[0:3] + prod[3:6]) + prod[6:9]).T  # R^T w
         ground_z = self.af.size[2] / 2
         local = pos - self.offset
         # fresh arrays each update: every state gets rows of its own, never shared with the next
@@ -312,9 +333,9 @@ class QuadrotorFleet:
         vel = np.stack([lin[:, 1], lin[:, 0], -lin[:, 2]], axis=1)
         rates = wb * [1.0, -1.0, -1.0]  # FLU -> FRD
         # roll, pitch, yaw of the FLU body in ENU from R = Rz(yaw) Ry(pitch) Rx(roll)
-        roll = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
-        pitch = np.arcsin(np.clip(-rot[:, 2, 0], -1.0, 1.0))
-        yaw = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+        roll = np.arctan2(r9[7], r9[8])
+        pitch = np.arcsin(np.clip(-r9[6], -1.0, 1.0))
+        yaw = np.arctan2(r9[3], r9[0])
         yaw_ned = (np.pi / 2 - yaw + np.pi) % (2 * np.pi) - np.pi
         rpy = np.stack([roll, -pitch, yaw_ned], axis=1)
         self.landed = (pos[:, 2] < ground_z + 0.05) & (np.abs(lin[:, 2]) < 0.3)
@@ -325,6 +346,16 @@ class QuadrotorFleet:
             s.position_ned, s.velocity_ned, s.attitude_rpy, s.body_rates = ned[i], vel[i], rpy[i], rates[i]
             s.landed = landed[i]
             s.battery_voltage = 14.0 + 2.8 * s.battery_remaining
+
+    @property
+    def omega(self) -> np.ndarray:
+        """(N, 4) rotor speeds, rad/s (a view)."""
+        return self._om.T
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """(N, 3, 3) body-to-world rotations now."""
+        return self._r9.T.reshape(-1, 3, 3)
 
     @property
     def motor_thrusts(self) -> np.ndarray:

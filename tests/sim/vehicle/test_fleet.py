@@ -92,7 +92,7 @@ def test_the_fleet_reads_the_rotations_pybullet_gives(free_flight: bool) -> None
             m.set_position_target(np.array([3.0 * i, -2.0, -3.0]), yaw=0.7 * i)
         for _ in range(100):
             fleet.step(0.02)
-        rot = fleet._rot
+        rot = fleet.rotations
         assert fleet.free.all() == free_flight, "at 3 m every vehicle flies free, or none does"
         for i, (b, r) in enumerate(zip(fleet.bodies, rot, strict=True)):
             if free_flight:  # put PyBullet's body where the numpy step has it, read it back
