@@ -38,10 +38,6 @@ class Gains:
     max_yaw_torque: float = 0.05
 
 
-def _clip(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
-
-
 class CascadedController:
     """One vehicle. Rotation matrices are PyBullet's getMatrixFromQuaternion: 9 floats, row
     major, body to world."""
@@ -51,26 +47,39 @@ class CascadedController:
         if self.J.shape != (3, 3):
             raise ValueError(f"inertia must be 3 x 3 (got shape {self.J.shape})")
         self._j = tuple(float(x) for x in self.J.ravel())
+        # a diagonal J (the airframe's box): J w is (j00 wx, j11 wy, j22 wz), the same numbers as
+        # the full product (the other terms add zeros), 18 float operations fewer a call
+        self._jdiag = not any(self._j[i] for i in (1, 2, 3, 5, 6, 7))
         self.vel_int = [0.0, 0.0, 0.0]
+        self.refresh_gains()
+
+    def refresh_gains(self) -> None:
+        """Cache the gains as plain floats (attribute lookups cost as much as the arithmetic at
+        240 Hz); call again after changing `self.g`."""
+        g = self.g
+        self._tan_tilt = math.tan(g.max_tilt)
+        self._gains = (g.vel_p, g.vel_i, g.att_p, g.rate_p, g.max_yaw_rate, g.max_yaw_torque)
 
     def reset(self) -> None:
         self.vel_int = [0.0, 0.0, 0.0]
 
     def velocity_setpoint(self, pos: Sequence[float], target: Sequence[float], speed: float | None) -> Vec3:
         g = self.g
-        vx, vy, vz = g.pos_p * (target[0] - pos[0]), g.pos_p * (target[1] - pos[1]), g.pos_p * (target[2] - pos[2])
-        vmax = min(g.max_speed, speed or g.max_speed)
+        k = g.pos_p
+        vx, vy, vz = k * (target[0] - pos[0]), k * (target[1] - pos[1]), k * (target[2] - pos[2])
+        vmax = g.max_speed if not speed or speed > g.max_speed else speed
         h = math.hypot(vx, vy)
         if h > vmax:
             vx, vy = vx * (vmax / h), vy * (vmax / h)
-        return vx, vy, _clip(vz, -g.max_descent, g.max_climb)
+        lo, hi = -g.max_descent, g.max_climb
+        return vx, vy, (lo if vz < lo else hi if vz > hi else vz)
 
     def thrust_and_torque(
         self, rot: Sequence[float], vel: Sequence[float], omega_body: Sequence[float], vel_sp: Sequence[float],
         yaw_sp: float, dt: float,
     ) -> tuple[float, Vec3]:
         """Collective thrust (N) and body torques (N m) tracking a velocity and a yaw."""
-        g = self.g
+        vel_p, vel_i, att_p, rate_p, max_yaw_rate, max_yaw_torque = self._gains
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
         ex, ey, ez = vel_sp[0] - vel[0], vel_sp[1] - vel[1], vel_sp[2] - vel[2]
         # integrate only near the setpoint, so take-off and long legs do not wind it up
@@ -86,14 +95,16 @@ class CascadedController:
             iz += ez * dt
             iz = -2.0 if iz < -2.0 else 2.0 if iz > 2.0 else iz
         self.vel_int = [ix, iy, iz]
-        ax, ay = g.vel_p * ex + g.vel_i * ix, g.vel_p * ey + g.vel_i * iy
+        ax, ay = vel_p * ex + vel_i * ix, vel_p * ey + vel_i * iy
         # limit tilt: horizontal acceleration bounded by tan(max_tilt) * (g + a_z)
-        az = _clip(g.vel_p * ez + g.vel_i * iz, -0.7 * G, 1.0 * G)
-        hmax = math.tan(g.max_tilt) * (G + az)
+        az = vel_p * ez + vel_i * iz
+        az = -0.7 * G if az < -0.7 * G else G if az > G else az
+        hmax = self._tan_tilt * (G + az)
         h = math.hypot(ax, ay)
         if h > hmax:
             ax, ay = ax * (hmax / h), ay * (hmax / h)
-        fx, fy, fz = self.m * ax, self.m * ay, self.m * (az + G)
+        m = self.m
+        fx, fy, fz = m * ax, m * ay, m * (az + G)
         thrust = fx * r02 + fy * r12 + fz * r22
         n = math.sqrt(fx * fx + fy * fy + fz * fz)
         zx, zy, zz = fx / n, fy / n, fz / n
@@ -110,19 +121,26 @@ class CascadedController:
         e21 = 0.5 * ((zx * r01 + zy * r11 + zz * r21) - (r02 * yx + r12 * yy + r22 * yz))
         e02 = 0.5 * ((xx * r02 + xy * r12 + xz * r22) - (r00 * zx + r10 * zy + r20 * zz))
         e10 = 0.5 * ((yx * r00 + yy * r10 + yz * r20) - (r01 * xx + r11 * xy + r21 * xz))
-        kp, kr = g.att_p, g.rate_p
         wx, wy, wz = omega_body
-        qx = kr * (-kp * e21 - wx)
-        qy = kr * (-kp * e02 - wy)
-        qz = kr * (_clip(-kp * e10, -g.max_yaw_rate, g.max_yaw_rate) - wz)
+        qx = rate_p * (-att_p * e21 - wx)
+        qy = rate_p * (-att_p * e02 - wy)
+        rz = -att_p * e10
+        qz = rate_p * ((-max_yaw_rate if rz < -max_yaw_rate else max_yaw_rate if rz > max_yaw_rate else rz) - wz)
         j00, j01, j02, j10, j11, j12, j20, j21, j22 = self._j
-        hx, hy, hz = j00 * wx + j01 * wy + j02 * wz, j10 * wx + j11 * wy + j12 * wz, j20 * wx + j21 * wy + j22 * wz
-        tx = j00 * qx + j01 * qy + j02 * qz + (wy * hz - wz * hy)
-        ty = j10 * qx + j11 * qy + j12 * qz + (wz * hx - wx * hz)
-        tz = j20 * qx + j21 * qy + j22 * qz + (wx * hy - wy * hx)
+        if self._jdiag:
+            hx, hy, hz = j00 * wx, j11 * wy, j22 * wz
+            tx = j00 * qx + (wy * hz - wz * hy)
+            ty = j11 * qy + (wz * hx - wx * hz)
+            tz = j22 * qz + (wx * hy - wy * hx)
+        else:
+            hx, hy, hz = (j00 * wx + j01 * wy + j02 * wz, j10 * wx + j11 * wy + j12 * wz,
+                          j20 * wx + j21 * wy + j22 * wz)
+            tx = j00 * qx + j01 * qy + j02 * qz + (wy * hz - wz * hy)
+            ty = j10 * qx + j11 * qy + j12 * qz + (wz * hx - wx * hz)
+            tz = j20 * qx + j21 * qy + j22 * qz + (wx * hy - wy * hx)
         # yaw authority comes from differential rotor drag: never let it starve thrust or tilt
-        tz = _clip(tz, -g.max_yaw_torque, g.max_yaw_torque)
-        return max(thrust, 0.0), (tx, ty, tz)
+        tz = -max_yaw_torque if tz < -max_yaw_torque else max_yaw_torque if tz > max_yaw_torque else tz
+        return (thrust if thrust > 0.0 else 0.0), (tx, ty, tz)
 
 
 class BatchController:

@@ -80,6 +80,11 @@ class PyBulletQuadrotor:
         self._rotor_coefs = tuple((self.af.kf * float(r[1]), -self.af.kf * float(r[0]), sp * self.af.km)
                                   for r, sp in zip(rotors, spin, strict=True))
         self._alloc_rows = tuple(tuple(float(x) for x in row) for row in self.alloc_inv)
+        # flat tuples and plain floats for the substep (one unpack, no attribute lookups)
+        self._alloc_flat = tuple(x for row in self._alloc_rows for x in row)
+        self._coefs_flat = tuple(x for c in self._rotor_coefs for x in c)
+        self._consts = (1.0 / self.af.kf, self.af.max_omega, self.af.max_omega * self.af.max_omega, self.af.kf,
+                        self.af.drag)
         self._h = 1.0 / PHYSICS_HZ
         self._lag = min(1.0, self._h / self.af.motor_tau)
         self._idle_cmd = [0.15 * self.af.max_omega] * 4
@@ -161,7 +166,7 @@ class PyBulletQuadrotor:
             lin, ang = p.getBaseVelocity(body, cid)
             rot = p.getMatrixFromQuaternion(quat)
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
-        af = self.af
+        ikf, wmax, wmax2, kf, drag = self._consts
         s = self._s
         w0, w1, w2, w3 = self.omega
         if s.armed and self._mode != "idle":
@@ -175,17 +180,20 @@ class PyBulletQuadrotor:
                 vel_sp = (0.0, 0.0, -0.7 if pos[2] > 1.0 else -0.4)
             thrust, (tx, ty, tz) = self.ctrl.thrust_and_torque(rot, lin, wb, vel_sp, self._yaw_enu, h)
             # mixer: rotor thrusts from the inverse allocation, speeds from thrust = kf w^2
-            (a00, a01, a02, a03), (a10, a11, a12, a13), (a20, a21, a22, a23), (a30, a31, a32, a33) = \
-                self._alloc_rows
-            ikf, wmax, sqrt = 1.0 / af.kf, af.max_omega, math.sqrt
+            a00, a01, a02, a03, a10, a11, a12, a13, a20, a21, a22, a23, a30, a31, a32, a33 = self._alloc_flat
+            sqrt = math.sqrt
             f = a00 * thrust + a01 * tx + a02 * ty + a03 * tz
-            c0 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            fi = f * ikf
+            c0 = (sqrt(fi) if fi < wmax2 else wmax) if f > 0.0 else 0.0
             f = a10 * thrust + a11 * tx + a12 * ty + a13 * tz
-            c1 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            fi = f * ikf
+            c1 = (sqrt(fi) if fi < wmax2 else wmax) if f > 0.0 else 0.0
             f = a20 * thrust + a21 * tx + a22 * ty + a23 * tz
-            c2 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            fi = f * ikf
+            c2 = (sqrt(fi) if fi < wmax2 else wmax) if f > 0.0 else 0.0
             f = a30 * thrust + a31 * tx + a32 * ty + a33 * tz
-            c3 = (sqrt(f * ikf) if f * ikf < wmax * wmax else wmax) if f > 0.0 else 0.0
+            fi = f * ikf
+            c3 = (sqrt(fi) if fi < wmax2 else wmax) if f > 0.0 else 0.0
         elif s.armed:
             c0 = c1 = c2 = c3 = self._idle_cmd[0]  # idle spin on the ground
         else:
@@ -196,20 +204,19 @@ class PyBulletQuadrotor:
         q0, q1, q2, q3 = w0 * w0, w1 * w1, w2 * w2, w3 * w3
         # rotor i pushes kf q_i along body z at (x_i, y_i): torque (y_i, -x_i, 0) kf q_i; its drag
         # turns the body by spin_i km q_i
-        (a0, b0, s0), (a1, b1, s1), (a2, b2, s2), (a3, b3, s3) = self._rotor_coefs
-        total = af.kf * (q0 + q1 + q2 + q3)
+        a0, b0, s0, a1, b1, s1, a2, b2, s2, a3, b3, s3 = self._coefs_flat
+        total = kf * (q0 + q1 + q2 + q3)
         bx = a0 * q0 + a1 * q1 + a2 * q2 + a3 * q3
         by = b0 * q0 + b1 * q1 + b2 * q2 + b3 * q3
         bz = s0 * q0 + s1 * q1 + s2 * q2 + s3 * q3
-        d = af.drag
-        force = (total * r02 - d * lin[0], total * r12 - d * lin[1], total * r22 - d * lin[2])
+        force = (total * r02 - drag * lin[0], total * r12 - drag * lin[1], total * r22 - drag * lin[2])
         torque = (r00 * bx + r01 * by + r02 * bz, r10 * bx + r11 * by + r12 * bz, r20 * bx + r21 * by + r22 * bz)
         p.applyExternalForce(body, -1, force, pos, _WORLD_FRAME, cid)
         p.applyExternalTorque(body, -1, torque, _WORLD_FRAME, cid)
         p.stepSimulation(cid)
         self.time += h
         if self._mode == "land" and s.armed:
-            if pos[2] < af.size[2] / 2 + 0.03 and abs(lin[2]) < 0.2:
+            if pos[2] < self.af.size[2] / 2 + 0.03 and abs(lin[2]) < 0.2:
                 self.disarm(force=True)
 
     def _update_state(self) -> None:
