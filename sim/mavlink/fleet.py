@@ -59,7 +59,7 @@ class SitlFleet(BackgroundRunner):
             self._close()
             raise
         self.errors: list[str] = []
-        arrays = isinstance(self.world, KinematicFleet)  # its states read its arrays (ArrayState)
+        arrays = isinstance(self.world, (KinematicFleet, QuadrotorFleet))  # its states read its arrays (ArrayState)
         self.telemetry = FleetTelemetry(self.errors, self.world if arrays else None)
         for i, s in enumerate(self.sitls):
             s.vehicle.fleet_index = i

@@ -142,18 +142,20 @@ class QuadrotorFleet:
         self._m: np.ndarray | None = None  # matrices(self._q) (9, N), when every vehicle is free
         self.free = np.zeros(n, dtype=bool)  # stepped by the numpy step (in the air), not PyBullet
         self._read_bullet(np.arange(n))
-        self.states = [VehicleState() for _ in range(n)]
+        # what the states read (QuadState): positions, velocities, attitudes and body rates made
+        # fresh every step; the battery as the MAVLink side writes it (VehicleState's defaults)
+        self.battery_remaining, self.battery_voltage = np.ones(n), np.full(n, 16.8)
+        self.states = [QuadState(self, i) for i in range(n)]
         self.members = [FleetMember(self, i) for i in range(n)]
         self._update_states()
 
     # -- commands (FleetMember forwards here) ----------------------------------------------
     def arm(self, i: int) -> bool:
-        s = self.states[i]
-        if s.armed:
+        if self.armed[i]:
             return True
-        if not s.landed:
+        if not self.landed[i]:
             return False
-        s.armed = self.armed[i] = True
+        self.armed[i] = True
         self._masks = None
         self.ctrl.reset(i)
         self.target[i] = self._p[:, i]
@@ -161,10 +163,9 @@ class QuadrotorFleet:
         return True
 
     def disarm(self, i: int, force: bool = False) -> bool:
-        s = self.states[i]
-        if not s.landed and not force:
+        if not self.landed[i] and not force:
             return False
-        s.armed = self.armed[i] = False
+        self.armed[i] = False
         self._masks = None
         self.mode[i] = IDLE
         self._om[:, i] = 0.0
@@ -339,13 +340,9 @@ class QuadrotorFleet:
         yaw_ned = (np.pi / 2 - yaw + np.pi) % (2 * np.pi) - np.pi
         rpy = np.stack([roll, -pitch, yaw_ned], axis=1)
         self.landed = (pos[:, 2] < ground_z + 0.05) & (np.abs(lin[:, 2]) < 0.3)
-        self.positions_ned = ned  # (N, 3): what the states hold, as one array
-        landed = self.landed.tolist()
-        for i, s in enumerate(self.states):
-            s.time_s = self.time
-            s.position_ned, s.velocity_ned, s.attitude_rpy, s.body_rates = ned[i], vel[i], rpy[i], rates[i]
-            s.landed = landed[i]
-            s.battery_voltage = 14.0 + 2.8 * s.battery_remaining
+        # (N, 3) each: what the states read (QuadState), fresh arrays every step
+        self.positions_ned, self.velocities_ned, self.attitudes_rpy, self.body_rates = ned, vel, rpy, rates
+        np.add(self.battery_remaining * 2.8, 14.0, out=self.battery_voltage)  # as PyBulletQuadrotor sets it
 
     @property
     def omega(self) -> np.ndarray:
@@ -418,6 +415,25 @@ class ArrayState:
     def __repr__(self) -> str:
         return (f"ArrayState(vehicle {self._i}, position_ned={self.position_ned}, velocity_ned={self.velocity_ned}, "
                 f"armed={self.armed}, landed={self.landed}, battery_remaining={self.battery_remaining:.4f})")
+
+
+class QuadState(ArrayState):
+    """A QuadrotorFleet member's VehicleState: everything read from the fleet's arrays, attitude
+    and body rates too (rows of arrays made fresh every step), so a step writes no per-vehicle
+    Python (16 states cost ~30 us a step). Armed and landed are the fleet's flags."""
+
+    __slots__ = ()
+
+    def __init__(self, fleet: QuadrotorFleet, i: int) -> None:  # no arrays of its own
+        self._f, self._i = fleet, i
+
+    @property
+    def attitude_rpy(self) -> np.ndarray:
+        return self._f.attitudes_rpy[self._i]
+
+    @property
+    def body_rates(self) -> np.ndarray:
+        return self._f.body_rates[self._i]
 
 
 class KinematicFleet:

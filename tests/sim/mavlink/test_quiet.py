@@ -5,6 +5,7 @@ ticks every vehicle in full, tick by tick, on the same (fake) wall clock."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pymavlink.dialects.v20 import common as mavlink
 from udp_ports import free_udp_port
 
@@ -26,8 +27,8 @@ class FakeWall:
         return self.now
 
 
-def _fleet(quiet: bool, wall: FakeWall) -> tuple[SitlFleet, list[list[bytes]]]:
-    cfgs = [SitlConfig(instance=i, physics="kinematic", speedup=0, camera=False, seed=i, episode_seed=i,
+def _fleet(quiet: bool, wall: FakeWall, physics: str = "kinematic") -> tuple[SitlFleet, list[list[bytes]]]:
+    cfgs = [SitlConfig(instance=i, physics=physics, speedup=0, camera=False, seed=i, episode_seed=i,
                        api_local_port=free_udp_port(), api_remote_port=free_udp_port(),
                        gcs_local_port=free_udp_port(), gcs_remote_port=free_udp_port()) for i in range(N)]
     fleet = SitlFleet(cfgs, quiet_ticks=quiet, vector_telemetry=quiet)
@@ -87,9 +88,13 @@ def _state(fleet: SitlFleet) -> list[tuple]:
     return rows
 
 
-def test_quiet_ticks_fly_stream_and_fail_safe_as_full_ticks() -> None:
+@pytest.mark.parametrize("physics", ["kinematic", "pybullet"])
+def test_quiet_ticks_fly_stream_and_fail_safe_as_full_ticks(physics: str) -> None:
+    """Both fleets' states are array views (ArrayState, QuadState): quiet ticks write the
+    battery arrays, telemetry reads the position arrays."""
     wall = FakeWall()
-    (quiet, sent_q), (full, sent_f) = _fleet(True, wall), _fleet(False, wall)
+    (quiet, sent_q), (full, sent_f) = _fleet(True, wall, physics), _fleet(False, wall, physics)
+    assert quiet.quiet.world is quiet.world, "the quiet ticks' array path"
     home_alt = quiet[0].home.alt_m
     try:
         for k in range(int(SECONDS / 0.02)):
