@@ -125,6 +125,7 @@ class QuadrotorFleet:
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.zeros(n, dtype=np.int64)
         self.target = self.offset + [0.0, 0.0, half[2]]
+        self._off_ned = np.ascontiguousarray(self.offset.T[[1, 0, 2]])  # offsets in the NED rows' order
         self.vel_cmd = np.zeros((n, 3))
         self.speed = np.full(n, np.nan)
         self.yaw = np.full(n, np.pi / 2)
@@ -323,26 +324,33 @@ class QuadrotorFleet:
             self._m = None
 
     def _update_states(self) -> None:
-        r9, lin = self._r9, self._wv[3:6].T
-        pos = self._p.T
-        prod = r9.take(self._WB_R, axis=0) * self._wv.take(self._WB_W, axis=0)
-        wb = ((prod[0:3] + prod[3:6]) + prod[6:9]).T  # R^T w
-        ground_z = self.af.size[2] / 2
-        local = pos - self.offset
-        # fresh arrays each update: every state gets rows of its own, never shared with the next
-        ned = np.stack([local[:, 1], local[:, 0], ground_z - local[:, 2]], axis=1)
-        vel = np.stack([lin[:, 1], lin[:, 0], -lin[:, 2]], axis=1)
-        rates = wb * [1.0, -1.0, -1.0]  # FLU -> FRD
-        # roll, pitch, yaw of the FLU body in ENU from R = Rz(yaw) Ry(pitch) Rx(roll)
-        roll = np.arctan2(r9[7], r9[8])
-        pitch = np.arcsin(np.clip(-r9[6], -1.0, 1.0))
+        """What the states read, as (N, 3) views of one fresh (12, N) array (positions NED,
+        velocities NED, roll/pitch/yaw, body rates FRD): a few calls on rows, no per-vehicle
+        Python; fresh every step, so no state's arrays are shared with the next step's."""
+        r9, wv, p_ = self._r9, self._wv, self._p
+        gz = self.af.size[2] / 2
+        out = np.empty((12, self.n))
+        ned, vel, rpy, rates = out[0:3], out[3:6], out[6:9], out[9:12]
+        np.subtract(p_.take(self._NED, axis=0), self._off_ned, out=ned)  # (y, x, z) - offsets
+        np.subtract(gz, ned[2], out=ned[2])  # height above the ground -> down
+        wv.take(self._NED_V, axis=0, out=vel)
+        np.negative(vel[2], out=vel[2])
+        prod = r9.take(self._WB_R, axis=0) * wv.take(self._WB_W, axis=0)
+        np.add(prod[0:3] + prod[3:6], prod[6:9], out=rates)  # R^T w, FLU
+        np.negative(rates[1:3], out=rates[1:3])  # -> FRD
+        # roll, pitch, yaw of the FLU body in ENU from R = Rz(yaw) Ry(pitch) Rx(roll); NED: -pitch,
+        # pi/2 - yaw wrapped to [-pi, pi)
+        np.arctan2(r9[7], r9[8], out=rpy[0])
+        np.arcsin(np.minimum(np.maximum(-r9[6], -1.0), 1.0), out=rpy[1])
+        np.negative(rpy[1], out=rpy[1])
         yaw = np.arctan2(r9[3], r9[0])
-        yaw_ned = (np.pi / 2 - yaw + np.pi) % (2 * np.pi) - np.pi
-        rpy = np.stack([roll, -pitch, yaw_ned], axis=1)
-        self.landed = (pos[:, 2] < ground_z + 0.05) & (np.abs(lin[:, 2]) < 0.3)
-        # (N, 3) each: what the states read (QuadState), fresh arrays every step
-        self.positions_ned, self.velocities_ned, self.attitudes_rpy, self.body_rates = ned, vel, rpy, rates
+        np.subtract((np.pi / 2 - yaw + np.pi) % (2 * np.pi), np.pi, out=rpy[2])
+        self.landed = (p_[2] < gz + 0.05) & (np.abs(wv[5]) < 0.3)
+        self.positions_ned, self.velocities_ned, self.attitudes_rpy, self.body_rates = ned.T, vel.T, rpy.T, rates.T
         np.add(self.battery_remaining * 2.8, 14.0, out=self.battery_voltage)  # as PyBulletQuadrotor sets it
+
+    #: rows of the NED position (y, x, z of ENU) and velocity (vy, vx, vz of the (w, v) rows)
+    _NED, _NED_V = np.array([1, 0, 2]), np.array([4, 3, 5])
 
     @property
     def omega(self) -> np.ndarray:
