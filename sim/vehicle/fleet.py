@@ -72,7 +72,9 @@ class QuadrotorFleet:
     is stepped by `free_flight.FreeFlight`, Bullet's own free-body step in numpy over the
     fleet (the same bits: test_free_flight.py), so a fleet in the air makes no PyBullet call;
     near the ground (below `BULLET_BELOW_M`) PyBullet steps it, for the ground contact.
-    `free_flight=False` steps every body in PyBullet always (the reference the tests fly)."""
+    `free_flight=False` steps every body in PyBullet always (the reference the tests fly). The
+    numpy step costs about the same whatever the number of vehicles it steps, so vehicles fly
+    free only when enough of them are in the air (`free_flight_min`)."""
 
     #: a vehicle in PyBullet goes to the numpy step above this height (m, world z of its centre)
     FREE_ABOVE_M = 1.0
@@ -81,7 +83,9 @@ class QuadrotorFleet:
     BULLET_BELOW_M = 0.75
 
     def __init__(self, n: int, airframe: Airframe | None = None, gains: Gains | None = None,
-                 free_flight: bool = True) -> None:
+                 free_flight: bool = True, free_flight_min: int | None = None) -> None:
+        """free_flight_min: fly free only when at least this many vehicles are in the air (None:
+        where the numpy step pays for itself)."""
         if n < 1:
             raise ValueError(f"a fleet needs at least one vehicle (got {n})")
         self.n, self.af = n, airframe or Airframe()
@@ -100,13 +104,10 @@ class QuadrotorFleet:
         side = math.ceil(math.sqrt(n))
         self.offset = np.array([[SPACING_M * (i % side), SPACING_M * (i // side), 0.0] for i in range(n)])
         north = p.getQuaternionFromEuler([0, 0, np.pi / 2])
-        self.bodies = []
-        for i in range(n):
-            start = self.offset[i] + [0.0, 0.0, half[2]]
-            b = p.createMultiBody(af.mass, col, -1, start.tolist(), north, physicsClientId=self.cid)
-            p.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=self.cid)
-            p.setCollisionFilterGroupMask(b, -1, 2, 1, physicsClientId=self.cid)
-            self.bodies.append(b)
+        self._col = col
+        #: each vehicle's PyBullet body; None while it flies free (numpy step): a body left in the
+        #: world would still cost PyBullet its integration and broadphase every step
+        self.bodies: list[int | None] = [self._body(self.offset[i] + [0.0, 0.0, half[2]], north) for i in range(n)]
         m, (a, bb, c) = af.mass, af.size
         self.J = np.diag([m * (bb * bb + c * c) / 12, m * (a * a + c * c) / 12, m * (a * a + bb * bb) / 12])
         self.ctrl = BatchController(n, af.mass, self.J, gains)
@@ -121,6 +122,10 @@ class QuadrotorFleet:
         # Bullet's own mass and inertia diagonal (from the box shape), for the numpy step
         info = p.getDynamicsInfo(self.bodies[0], -1, physicsClientId=self.cid)
         self._free_flight = FreeFlight(info[0], info[2], gravity, 1.0 / PHYSICS_HZ) if free_flight else None
+        # the numpy step costs ~35 + 0.5 N us a substep whatever the number it steps, PyBullet ~3.6 us
+        # a vehicle (reads, forces, its share of stepSimulation; timeit on 2-core EPYC): vehicles
+        # fly free only when that many are in the air (12 of 16; 24 of 100), with 2 of hysteresis
+        self._free_min = min(n, math.ceil((35.0 + 0.5 * n) / 3.6)) if free_flight_min is None else free_flight_min
         self._om = np.zeros((4, n))  # rotor speeds, rad/s, rotor first
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.zeros(n, dtype=np.int64)
@@ -142,6 +147,7 @@ class QuadrotorFleet:
         self._r9 = np.zeros((9, n))
         self._m: np.ndarray | None = None  # matrices(self._q) (9, N), when every vehicle is free
         self.free = np.zeros(n, dtype=bool)  # stepped by the numpy step (in the air), not PyBullet
+        self._set_split()
         self._read_bullet(np.arange(n))
         # what the states read (QuadState): positions, velocities, attitudes and body rates made
         # fresh every step; the battery as the MAVLink side writes it (VehicleState's defaults)
@@ -149,6 +155,14 @@ class QuadrotorFleet:
         self.states = [QuadState(self, i) for i in range(n)]
         self.members = [FleetMember(self, i) for i in range(n)]
         self._update_states()
+
+    def _body(self, pos, orn) -> int:
+        """A vehicle's body at pos (ENU) and orientation (x, y, z, w), at rest."""
+        cid = self.cid
+        b = p.createMultiBody(self.af.mass, self._col, -1, list(pos), orn, physicsClientId=cid)
+        p.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)
+        p.setCollisionFilterGroupMask(b, -1, 2, 1, physicsClientId=cid)
+        return b
 
     # -- commands (FleetMember forwards here) ----------------------------------------------
     def arm(self, i: int) -> bool:
@@ -272,61 +286,78 @@ class QuadrotorFleet:
         load = np.empty((6, self.n))  # torque, force: world, at the centre of mass
         np.add(prod[0::3] + prod[1::3], prod[2::3], out=load[0:3])
         np.subtract(r9[2::3] * (q.sum(axis=0) * af.kf), lin * af.drag, out=load[3:6])
-        free = self.free
-        n_free = int(free.sum()) if self._free_flight is not None else 0
-        if n_free < self.n:  # PyBullet steps the vehicles near the ground (and its other bodies)
-            cid, bullet = self.cid, np.flatnonzero(~free)
-            lt = load.T
-            for i, to, fo, po in zip(bullet.tolist(), lt[bullet, 0:3].tolist(), lt[bullet, 3:6].tolist(),
-                                     pos.T[bullet].tolist(), strict=True):
-                p.applyExternalForce(self.bodies[i], -1, fo, po, _WORLD_FRAME, cid)
-                p.applyExternalTorque(self.bodies[i], -1, to, _WORLD_FRAME, cid)
+        n_free, bullet, bullet_list, thr = self._split
+        if n_free < self.n:  # PyBullet steps the vehicles near the ground
+            cid, bodies = self.cid, self.bodies
+            lp = np.concatenate((load, pos)).T.take(bullet, axis=0).tolist() if n_free else \
+                np.concatenate((load, pos)).T.tolist()
+            for i, row in zip(bullet_list, lp, strict=True):
+                p.applyExternalForce(bodies[i], -1, row[3:6], row[6:9], _WORLD_FRAME, cid)
+                p.applyExternalTorque(bodies[i], -1, row[0:3], _WORLD_FRAME, cid)
             p.stepSimulation(cid)
         if n_free:  # fresh arrays: pos and lin above stay this substep's start for the touch-down check
             p1, q1, wv1, m1 = self._free_flight.step(pos, self._q, wv, load, self._m)
             # M(q)^T: exactly the matrix of conj(q), the orientation PyBullet would report
             self._p, self._q, self._wv, self._r9, self._m = p1, q1, wv1, m1.take(self._TRANSPOSE, axis=0), m1
         if n_free < self.n:  # the others' rows from PyBullet (their q rows are unused)
-            self._read_bullet(np.flatnonzero(~free))
+            self._read_bullet(bullet)
         self.time += h
         if land is not None:
             touch = land & self.armed & (pos[2] < af.size[2] / 2 + 0.03) & (np.abs(lin[2]) < 0.2)
             for i in np.flatnonzero(touch):
                 self.disarm(int(i), force=True)
         if self._free_flight is not None:
-            z = self._p[2]
-            if self.free.all() and z.min() >= self.BULLET_BELOW_M:
-                return  # the common case: every vehicle in the air
-            self._switch()
+            # a vehicle changes sides only when it crosses its threshold: free ones below
+            # BULLET_BELOW_M, the others above FREE_ABOVE_M (thr holds each one's)
+            flip = self.free == (self._p[2] < thr)
+            if flip.any() and (n_free or flip.sum() >= self._free_min):
+                self._switch()
 
     def _switch(self) -> None:
         """Vehicles that climbed above FREE_ABOVE_M go to the numpy step: Bullet's m_baseQuat is
         the conjugate of the orientation PyBullet reported (equal to the last bit or so: the
         report went through a matrix). Vehicles that came down below BULLET_BELOW_M go back:
         their bodies are put where the numpy step has them (resetBasePositionAndOrientation
-        stores conj(q), which is q exactly) with its velocities."""
-        z = self._p[2]
-        up = ~self.free & (z > self.FREE_ABOVE_M)
-        down = self.free & (z < self.BULLET_BELOW_M)
+        stores conj(q), which is q exactly) with its velocities. A free vehicle has no PyBullet
+        body: it is removed on the way up and made again on the way down."""
+        z, free = self._p[2], self.free
+        # who may fly free: in the air; all of them, if they are enough to pay for the numpy step
+        want = np.where(free, z >= self.BULLET_BELOW_M, z > self.FREE_ABOVE_M)
+        if want.sum() < (self._free_min - 2 if free.any() else self._free_min):
+            want[:] = False
+        up, down = want & ~free, free & ~want
         if up.any():
             qr = self._quat[up].T
             self._q[:, up] = [-qr[0], -qr[1], -qr[2], qr[3]]
             self.free |= up
             self._m = None
-            # its PyBullet body, left behind, does not meet the ground (it falls through while
-            # the others are stepped: no contact to solve) until the vehicle comes back
+            # its PyBullet body goes: left in the world it would cost PyBullet its integration and
+            # broadphase every step while other vehicles are on the ground
             for i in np.flatnonzero(up).tolist():
-                p.setCollisionFilterPair(self.ground, self.bodies[i], -1, -1, 0, physicsClientId=self.cid)
+                p.removeBody(self.bodies[i], physicsClientId=self.cid)
+                self.bodies[i] = None
         if down.any():
             cid = self.cid
             for i in np.flatnonzero(down).tolist():
                 x, y, zq, w = self._q[:, i].tolist()
-                b = self.bodies[i]
-                p.resetBasePositionAndOrientation(b, self._p[:, i].tolist(), (-x, -y, -zq, w), cid)
+                pos, orn = self._p[:, i].tolist(), (-x, -y, -zq, w)
+                b = self.bodies[i] = self._body(pos, orn)
+                # createMultiBody stores the orientation through a matrix; the reset stores
+                # conj(orn) = q exactly
+                p.resetBasePositionAndOrientation(b, pos, orn, cid)
                 p.resetBaseVelocity(b, self._wv[3:6, i].tolist(), self._wv[0:3, i].tolist(), cid)
-                p.setCollisionFilterPair(self.ground, b, -1, -1, 1, physicsClientId=cid)
             self.free &= ~down
             self._m = None
+        if up.any() or down.any():
+            self._set_split()
+
+    def _set_split(self) -> None:
+        """(vehicles free, indices and list of the others, each one's switching height): what
+        a substep needs of `free`, made when it changes."""
+        free = self.free
+        bullet = np.flatnonzero(~free)
+        self._split = (int(free.sum()), bullet, bullet.tolist(),
+                       np.where(free, self.BULLET_BELOW_M, self.FREE_ABOVE_M))
 
     def _update_states(self) -> None:
         """What the states read, as (N, 3) views of one fresh (12, N) array (positions NED,

@@ -95,7 +95,7 @@ def test_a_fleet_in_free_flight_flies_what_pybullet_flies() -> None:
     PyBullet reports, which can differ from Bullet's own quaternion in the last bit)."""
     got, switched = {}, {}
     for free in (False, True):
-        fleet = QuadrotorFleet(3, free_flight=free)
+        fleet = QuadrotorFleet(3, free_flight=free, free_flight_min=1)  # any vehicle in the air flies free
         seen = []
         step = fleet.step
 
@@ -113,3 +113,32 @@ def test_a_fleet_in_free_flight_flies_what_pybullet_flies() -> None:
     for i in (0, 1):
         assert np.ptp(got[False][i][:, 2]) > 1.5 and got[False][i][-1, 9] == 0.0, "flies up, lands, disarms"
         assert np.abs(got[True][i] - got[False][i]).max() < 1e-12
+
+
+def test_vehicles_fly_free_only_when_enough_are_in_the_air() -> None:
+    """The numpy step costs about the same for 1 or 16 vehicles: below `free_flight_min`
+    vehicles in the air every vehicle stays in PyBullet; from it on, those in the air fly free,
+    and when too few remain (2 of hysteresis) they all go back."""
+    fleet = QuadrotorFleet(6, free_flight_min=4)
+    try:
+        def fly(k: int) -> None:
+            for i, m in enumerate(fleet.members):
+                if i < k and not m.state.armed:
+                    assert m.arm()
+                    m.set_position_target(np.array([0.0, 0.0, -3.0]))
+            for _ in range(100):
+                fleet.step(0.02)
+
+        fly(3)
+        assert not fleet.free.any(), "3 of 6 in the air: PyBullet steps them all"
+        fly(4)
+        assert fleet.free.tolist() == [True] * 4 + [False] * 2
+        for i in (0, 1, 2):
+            fleet.members[i].land()
+        for _ in range(300):
+            fleet.step(0.02)
+        assert not fleet.free.any(), "1 left in the air (fewer than 4 - 2): back to PyBullet"
+        assert fleet.states[0].landed and not fleet.states[0].armed
+        assert all(b is not None for b in fleet.bodies), "every vehicle has its body again"
+    finally:
+        fleet.close()
