@@ -124,8 +124,10 @@ class QuadrotorFleet:
         self._free_flight = FreeFlight(info[0], info[2], gravity, 1.0 / PHYSICS_HZ) if free_flight else None
         # the numpy step costs ~35 + 0.5 N us a substep whatever the number it steps, PyBullet ~3.6 us
         # a vehicle (reads, forces, its share of stepSimulation; timeit on 2-core EPYC): vehicles
-        # fly free only when that many are in the air (12 of 16; 24 of 100), with 2 of hysteresis
-        self._free_min = min(n, math.ceil((35.0 + 0.5 * n) / 3.6)) if free_flight_min is None else free_flight_min
+        # fly free only when that many are in the air (12 of 16; 24 of 100), with 2 of hysteresis;
+        # a fleet of fewer than 12 never does (n + 1 is never reached)
+        pays = math.ceil((35.0 + 0.5 * n) / 3.6)
+        self._free_min = (pays if pays <= n else n + 1) if free_flight_min is None else free_flight_min
         self._om = np.zeros((4, n))  # rotor speeds, rad/s, rotor first
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.zeros(n, dtype=np.int64)

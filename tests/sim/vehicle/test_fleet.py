@@ -85,7 +85,7 @@ def test_the_fleet_reads_the_rotations_pybullet_gives(free_flight: bool) -> None
 
     from sim.vehicle.free_flight import matrices
 
-    fleet = QuadrotorFleet(4, free_flight=free_flight)
+    fleet = QuadrotorFleet(4, free_flight=free_flight, free_flight_min=1)  # 4 alone would stay in PyBullet
     try:
         for i, m in enumerate(fleet.members):
             m.arm()

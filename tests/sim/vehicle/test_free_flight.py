@@ -142,3 +142,13 @@ def test_vehicles_fly_free_only_when_enough_are_in_the_air() -> None:
         assert all(b is not None for b in fleet.bodies), "every vehicle has its body again"
     finally:
         fleet.close()
+    small = QuadrotorFleet(4)  # the numpy step would cost more than PyBullet for 4 vehicles
+    try:
+        for m in small.members:
+            m.arm()
+            m.set_position_target(np.array([0.0, 0.0, -3.0]))
+        for _ in range(100):
+            small.step(0.02)
+        assert not small.free.any() and (small.positions_ned[:, 2] < -2.0).all()
+    finally:
+        small.close()
