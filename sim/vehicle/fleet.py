@@ -127,7 +127,8 @@ class QuadrotorFleet:
         # fly free only when that many are in the air (12 of 16; 24 of 100), with 2 of hysteresis;
         # a fleet of fewer than 12 never does (n + 1 is never reached)
         pays = math.ceil((35.0 + 0.5 * n) / 3.6)
-        self._free_min = (pays if pays <= n else n + 1) if free_flight_min is None else free_flight_min
+        #: vehicles in the air needed to fly free (may be changed between steps)
+        self.free_flight_min = (pays if pays <= n else n + 1) if free_flight_min is None else free_flight_min
         self._om = np.zeros((4, n))  # rotor speeds, rad/s, rotor first
         self.armed = np.zeros(n, dtype=bool)
         self.mode = np.zeros(n, dtype=np.int64)
@@ -312,7 +313,7 @@ class QuadrotorFleet:
             # a vehicle changes sides only when it crosses its threshold: free ones below
             # BULLET_BELOW_M, the others above FREE_ABOVE_M (thr holds each one's)
             flip = self.free == (self._p[2] < thr)
-            if flip.any() and (n_free or flip.sum() >= self._free_min):
+            if flip.any() and (n_free or flip.sum() >= self.free_flight_min):
                 self._switch()
 
     def _switch(self) -> None:
@@ -325,7 +326,7 @@ class QuadrotorFleet:
         z, free = self._p[2], self.free
         # who may fly free: in the air; all of them, if they are enough to pay for the numpy step
         want = np.where(free, z >= self.BULLET_BELOW_M, z > self.FREE_ABOVE_M)
-        if want.sum() < (self._free_min - 2 if free.any() else self._free_min):
+        if want.sum() < (self.free_flight_min - 2 if free.any() else self.free_flight_min):
             want[:] = False
         up, down = want & ~free, free & ~want
         if up.any():

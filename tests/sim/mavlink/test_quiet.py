@@ -88,14 +88,19 @@ def _state(fleet: SitlFleet) -> list[tuple]:
     return rows
 
 
-@pytest.mark.parametrize("physics", ["kinematic", "pybullet"])
+@pytest.mark.parametrize("physics", ["kinematic", "pybullet", "pybullet, free flight"])
 def test_quiet_ticks_fly_stream_and_fail_safe_as_full_ticks(physics: str) -> None:
     """Both fleets' states are array views (ArrayState, QuadState): quiet ticks write the
-    battery arrays, telemetry reads the position arrays."""
+    battery arrays, telemetry reads the position arrays. "free flight": the PyBullet fleet's
+    vehicles in the air are stepped by the numpy step (free_flight.py) from the first one up."""
     wall = FakeWall()
-    (quiet, sent_q), (full, sent_f) = _fleet(True, wall, physics), _fleet(False, wall, physics)
+    kind = physics.split(",")[0]
+    (quiet, sent_q), (full, sent_f) = _fleet(True, wall, kind), _fleet(False, wall, kind)
+    if physics.endswith("free flight"):
+        quiet.world.free_flight_min = full.world.free_flight_min = 1
     assert quiet.quiet.world is quiet.world, "the quiet ticks' array path"
     home_alt = quiet[0].home.alt_m
+    flew_free = False
     try:
         for k in range(int(SECONDS / 0.02)):
             wall.now += 0.02  # a wall second per simulated second
@@ -107,6 +112,7 @@ def test_quiet_ticks_fly_stream_and_fail_safe_as_full_ticks(physics: str) -> Non
                         fleet.wake(i)  # what the fleet does for a vehicle it served
                 fleet.step()
             assert _state(quiet) == _state(full), f"tick {k}"
+            flew_free = flew_free or bool(getattr(quiet.world, "free", np.zeros(1)).any())
     finally:
         quiet.stop()
         full.stop()
@@ -127,3 +133,5 @@ def test_quiet_ticks_fly_stream_and_fail_safe_as_full_ticks(physics: str) -> Non
     assert full.quiet.quiet_ticks == 0 and full.quiet.full_ticks == ticks
     assert quiet.quiet.quiet_ticks > 0.4 * ticks, f"only {quiet.quiet.quiet_ticks} of {ticks} vehicle-ticks were quiet"
     assert np.ptp([s.vehicle.battery.remaining for s in quiet.sitls]) > 0.3
+    if physics.endswith("free flight"):
+        assert flew_free, "vehicles flew free"
