@@ -3,7 +3,8 @@
   all vehicles, then each vehicle's MAVLink tick;
 - the same N vehicles as N separate `Sitl` objects stepped one after the other (a Python loop
   per vehicle, each with its own physics world), as `--count N` ran before;
-- the fleet's physics alone (no MAVLink endpoints).
+- the fleet's physics alone (no MAVLink endpoints), also with only some of 16 PyBullet vehicles
+  flying (the others on the ground).
 Every vehicle takes off to 3.5 m and hovers, streaming its default telemetry (to ports nobody
 reads). Real-time factor = simulated s / CPU s of the measuring process at speed-up 0, each
 measurement in a fresh process. `--baseline DIR` also measures the fleet of an older checkout
@@ -87,8 +88,12 @@ def separate(n: int, physics: str, seconds: float) -> float:
 
 
 def physics_only(n: int, physics: str, seconds: float) -> float:
+    """physics "pybullet/K": only K of the n vehicles take off, the others stay disarmed on the
+    ground (a fleet in PyBullet near the ground and in free flight in the air, sim/vehicle/fleet.py)."""
+    physics, _, flying = physics.partition("/")
+    k = int(flying) if flying else n
     w = QuadrotorFleet(n) if physics == "pybullet" else KinematicFleet(n)
-    for m in w.members:
+    for m in w.members[:k]:
         m.arm()
         m.set_position_target(np.array([0.0, 0.0, -3.5]))
     for _ in range(50):
@@ -148,6 +153,19 @@ def main() -> None:
         if args.baseline:
             b = best["fleet", args.baseline]
             line += f"{b:>15.1f}x{f / b:>11.2f}x"
+        print(line, flush=True)
+    # physics only, part of a PyBullet fleet flying: the rest on the ground, stepped by PyBullet
+    print(f"{'physics only, 16 pybullet':<30}{'this checkout':>14}" + (f"{'baseline':>10}{'ratio':>8}" if args.baseline else ""))
+    for k in (16, 12, 8, 1):
+        jobs = [None] + ([args.baseline] if args.baseline else [])
+        best = dict.fromkeys(jobs, 0.0)
+        for _ in range(args.rounds):
+            for base in jobs:
+                best[base] = max(best[base], _in_process("physics", 16, f"pybullet/{k}", s, base))
+                loads.append(os.getloadavg()[0])
+        line = f"{f'  {k} flying, {16 - k} on the ground':<30}{best[None]:>13.1f}x"
+        if args.baseline:
+            line += f"{best[args.baseline]:>9.1f}x{best[None] / best[args.baseline]:>7.2f}x"
         print(line, flush=True)
     print(f"load average during the run: {min(loads):.1f}-{max(loads):.1f}"
           + (" (a loaded machine: CPU-time rates are noisy, compare the columns of one run)" if max(loads) > 2 else ""))
