@@ -1,17 +1,12 @@
 """free_flight.FreeFlight is Bullet's step of a free body: the same bits as PyBullet's
 stepSimulation, step after step, and a fleet flying with it flies what PyBullet flies."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pybullet as p
+from test_fleet import _fly
 
 from sim.vehicle.fleet import QuadrotorFleet
 from sim.vehicle.free_flight import FreeFlight, body_to_world, matrices
-
-sys.path.insert(0, str(Path(__file__).parent))
-from test_fleet import _fly  # noqa: E402
 
 
 def _world(n: int) -> tuple[int, list[int]]:
