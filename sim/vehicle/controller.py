@@ -168,8 +168,12 @@ class BatchController:
         # J as rows to multiply by (J w for a diagonal J is J_ii w_i: the same numbers as J @ w)
         self._jd = np.repeat(np.diag(self.J)[:, None], n, axis=1) if diagonal else None
         self.vi = np.zeros((3, n))  # velocity integrators, component first
-        # the gains and limits as 0-d arrays: an operation with a Python float converts it every
-        # call (~0.2 us of a ~0.35 us operation on tens of vehicles); the same values and results
+        self.refresh_gains()
+
+    def refresh_gains(self) -> None:
+        """Cache the gains and limits as 0-d arrays: an operation with a Python float converts it
+        every call (~0.2 us of a ~0.35 us operation on tens of vehicles); the same values and
+        results. Call again after changing `self.g`."""
         g = self.g
         self._k = {name: np.array(float(v)) for name, v in {
             "tan_tilt": math.tan(g.max_tilt), "m": self.m, "g": G, "vel_p": g.vel_p, "vel_i": g.vel_i,
