@@ -22,7 +22,10 @@ The model (why it is built this way):
   update, so with an exact position it is exact, and under GPS noise it is the
   probabilistic version of the same thing (like autopilot_bridge's probabilistic map, which
   spreads a visit over the posterior). The view's off-map channel also tells where the agent
-  can be (at a border or not): p is first conditioned on agreeing with it.
+  can be (at a border or not): p is first conditioned on agreeing with it, and on its target
+  channel (view_evidence): each slot showing a target counts the belief's P(a target is in
+  the cell it would show), each empty slot 1 - that (floored at VIEW_EPS, the view can be
+  wrong). A view that shows known targets where they are says where the agent is.
 - A target shown in the agent's own cell has been found (the world recovers a target when
   the agent stands on its cell at the same time, and the observation comes after that move).
   Whether that was a new find the spatiotemporal map M tells (its recoveries channel is
@@ -80,6 +83,8 @@ _BLOCKED = 1e-3
 _LEAK = 1e-3
 #: bound on |log g| of the pair correlation, so that no finite sample rules a cell out entirely
 _LOG_PAIR_CAP = 6.0
+#: the floor of a view slot's likelihood (policy.belief.state.BeliefState._view_likelihood)
+VIEW_EPS = 0.02
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
 _SLOTS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
 _SLOT_DY = np.array([dy for dy, _ in _SLOTS])
@@ -171,10 +176,12 @@ class BeliefState:
     docstring for the model; PLANE_NAMES for the network input."""
 
     def __init__(self, cfg: GridConfig, n: int, prior: np.ndarray | None = None,
-                 pair: np.ndarray | None = None) -> None:
+                 pair: np.ndarray | None = None, view_evidence: bool = True) -> None:
         """prior: (h, w) placement density or None (uniform). pair: (2h - 1, 2w - 1) pair
         correlation g(dy, dx) of the placement (policy.belief.prior.estimate_pair) or None
-        (targets placed independently): static targets only, see _pool."""
+        (targets placed independently): static targets only, see _pool. view_evidence: under
+        a GPS posterior, also condition the position on the view's targets (_view_likelihood);
+        False conditions on the off-map pattern only, as before Dec 2026."""
         if n < 1:
             raise ValueError(f"n must be >= 1 (got {n})")
         h, w = cfg.height, cfg.width
@@ -216,6 +223,9 @@ class BeliefState:
         self._crisp = True
         #: prior * (1 - seen) while _crisp (static targets' pool weight)
         self._unseen_prior = np.repeat(self.prior[None], n, axis=0)
+        self._reopened = False
+        #: condition a GPS position posterior on the view's targets too (_view_likelihood)
+        self.view_evidence = view_evidence
         self.target = self._target()
 
     # ----------------------------------------------------------------- derived quantities
@@ -273,9 +283,32 @@ class BeliefState:
         off = np.asarray(obs.views)[:, 1].astype(bool)  # (n, 3, 3)
         agree = np.all(self._offmap[None] == off[:, None, None], axis=(3, 4))  # (n, h, w)
         q = p * agree
+        if self.view_evidence:
+            q = q * self._view_likelihood(np.asarray(obs.views)[:, 0])
         tot = q.sum(axis=(1, 2), keepdims=True)
         q = np.where(tot > 1e-9, q / np.maximum(tot, 1e-9), p / np.maximum(p.sum(axis=(1, 2), keepdims=True), 1e-9))
         return q.astype(np.float32)
+
+    def _view_likelihood(self, tgt_slots: np.ndarray) -> np.ndarray:
+        """(n, h, w) how well the view's target channel fits the agent standing on each cell,
+        scaled to a maximum of 1: each slot showing a target counts P(a target is there) by the
+        belief, each empty one 1 - that, both floored at VIEW_EPS (the view can be wrong).
+
+        Why: the view is taken from where the agent truly is. Spread over a GPS posterior alone,
+        a found target shown one cell east, seen from the cell west of the believed one, puts a
+        phantom unfound target on the believed cell (nobody expected one there, so it counts as
+        new). The planner came back for it, and left it again, for a dozen moves (flight seed 5:
+        56 moves against 34 in the grid world). A position under which the view shows known
+        targets where they are is the likely one."""
+        u = self.target if not self.cfg.moving else self._sighted
+        occ = np.clip(u + self.found, VIEW_EPS, 1.0 - VIEW_EPS)
+        logl = np.zeros_like(occ)
+        for dy, dx in _SLOTS:
+            o = _shift(occ, -dy, -dx)  # o[y, x] = occ[y + dy, x + dx]: the cell in slot (dy, dx)
+            shown = tgt_slots[:, dy + 1, dx + 1, None, None] > 0
+            # off the grid _shift gives 0: an off-map slot shows nothing, a factor of 1
+            logl += np.where(shown, np.log(np.maximum(o, VIEW_EPS)), np.log1p(-o))
+        return np.exp(logl - logl.max(axis=(1, 2), keepdims=True))
 
     def update(self, obs) -> None:
         """Fold one decision's observation (views, positions, t, active, position_prob) in."""
@@ -371,7 +404,26 @@ class BeliefState:
             self.seen = 1.0 - (1.0 - self.seen) * keep
             self.age *= keep
         self.t = t.copy()
-        self.target = self._target(sighted_sum)
+        self._reopen_if_exhausted()
+        self.target = self._target(sighted_sum if not self._reopened else None)
+
+    def _reopen_if_exhausted(self) -> None:
+        """Static targets believed left unsighted with no unseen cell to hold them: a view
+        missed one (a real camera off its cell by more than half a cell sees a shifted window,
+        and a cell marked seen may not have been). Every cell not visited is reopened to the
+        prior, so the search sweeps the field again instead of wandering with nothing to
+        look for. With exact positions and a perfect view (the grid world) this never happens:
+        every cell seen means every target sighted or found."""
+        self._reopened = False
+        if self.cfg.moving:
+            return
+        weight = self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
+        dry = (self.unsighted > 0.5) & (weight.sum(axis=(1, 2)) < 1e-9)
+        if not dry.any():
+            return
+        self._reopened = True
+        self.seen[dry] = np.minimum(self.seen[dry], self.visited[dry])
+        self._unseen_prior[dry] = self.prior[None] * (1.0 - self.visited[dry])
 
     def _update_one(self, obs) -> None:
         """update() for one episode with an exact position and static targets while visited and
@@ -416,7 +468,8 @@ class BeliefState:
         self._unseen_prior[cells] = 0.0
         self.age[cells] = 0.0
         self.t = np.array([t], np.int64)
-        if self._pair is not None or sighted_sum is None:
+        self._reopen_if_exhausted()
+        if self._pair is not None or sighted_sum is None or self._reopened:
             self.target = self._target(sighted_sum)
             return
         # _pool with Python scalars: left, the unseen prior's total and the scale
