@@ -42,6 +42,10 @@ class SearchSpec:
     #: position, and setpoints are shifted by the estimated bias so the camera is truly over
     #: the cell it is meant to be over (False: fly in the GPS-estimate frame, as before)
     register: bool = True
+    #: the map and the view place the camera by the autopilot's smooth estimate less the
+    #: estimated bias (False: by the companion's posterior mean, which also carries its fixes'
+    #: white noise)
+    map_from_reading: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
@@ -73,6 +77,8 @@ class SearchLog:
     registered: list[int] = field(default_factory=list)
     #: per decision: whether the position was taken as exact (the believed cell held >= exact_above)
     exact: list[bool] = field(default_factory=list)
+    #: per decision: where the map and the view placed the camera (field north, east)
+    camera_ne: list[list[float]] = field(default_factory=list)
     #: every setpoint sent (local north, east; the autopilot's estimate frame)
     setpoints_local: list[list[float]] = field(default_factory=list)
     #: times the vehicle centred over a target in its cell before deciding (no move counted)
