@@ -262,5 +262,23 @@ def blobs_to_view(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: flo
     return view
 
 
+def show_beside(view: np.ndarray, beside: list[Blob], camera_height_m: float, cell: np.ndarray,
+                width: int, height: int) -> None:
+    """Light, in view, the slot next to the centre that each target in `beside` lies towards
+    (the larger of its north and east offsets): targets in the camera's cell that it is not over.
+
+    Why not the centre slot: the policy's world counts a target shown in the agent's own cell as
+    found (the agent stands on it), so a target shown there that the camera was not over was a
+    find the companion had not made, and the belief swept the field for a target it thought
+    gone (flight seed 4: 185 moves against 37 in the grid world). The slot it lies towards is
+    where the camera has to go to be over it. Off the field, nothing is lit."""
+    for b in beside:
+        n, e = b.offset_ne(camera_height_m)
+        dy, dx = (-int(np.sign(n)), 0) if abs(n) >= abs(e) else (0, int(np.sign(e)))
+        x, y = int(cell[0]) + dx, int(cell[1]) + dy
+        if (dy or dx) and 0 <= x < width and 0 <= y < height:
+            view[0, 1 + dy, 1 + dx] = 1
+
+
 def valid_moves(cell: np.ndarray, width: int, height: int, n_actions: int = 4) -> np.ndarray:
     return valid_mask(np.asarray(cell)[None], width, height, n_actions)[0]

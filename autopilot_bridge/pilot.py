@@ -19,7 +19,8 @@ import numpy as np
 from sim.gridworld import cell_to_ned
 
 from .estimator import GpsEstimator
-from .link import VehicleLink
+from .images import FrameRequester
+from .link import CommandRejected, LinkError, VehicleLink, mavlink
 from .registration import Registration
 from .search_data import SearchLog, SearchSpec
 from .telemetry import TelemetryIntake
@@ -27,6 +28,17 @@ from .telemetry import TelemetryIntake
 log = logging.getLogger(__name__)
 DECISION_DEADLINE_S = 5.0  # a decision (map update, policy) that takes longer is a hung loop
 FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
+#: the take-off's instants (simulated s): arm this long after the later of the schedule's
+#: origin t_ref and the launch window's end, climb half a second later, and hand over to
+#: OFFBOARD and the first leg CLIMB_S after that (a 3.5 m climb takes ~3 s). With the default
+#: 4 s period the first decision, a period after the hand-over, is at t_ref + 12 s, as before
+ARM_AFTER_S = 0.5
+TAKEOFF_AFTER_ARM_S = 0.5
+CLIMB_S = 5.0
+#: wall seconds to wait for a frame asked for ahead before asking again
+FRAME_WAIT_S = 5.0
+#: asks for OFFBOARD while it is refused for want of a fresh setpoint
+OFFBOARD_TRIES = 5
 
 
 class Pilot:
@@ -34,14 +46,17 @@ class Pilot:
     setpoint per leg (streamed while the loop keeps its promises), landing."""
 
     def __init__(self, link: VehicleLink, spec: SearchSpec, estimator: GpsEstimator,
-                 intake: TelemetryIntake, registration: Registration, search_log: SearchLog) -> None:
-        self.link, self.spec, self.estimator = link, spec, estimator
+                 intake: TelemetryIntake, registration: Registration, search_log: SearchLog,
+                 frames: FrameRequester) -> None:
+        self.link, self.spec, self.estimator, self.frames = link, spec, estimator, frames
         self.intake, self.registration, self.log = intake, registration, search_log
         self._setpoint: np.ndarray | None = None  # local NED (autopilot frame)
         self._setpoint_lock = threading.Lock()
         self._stream_stop = threading.Event()
         self._alive_until = float("inf")  # the decision loop's deadline (see expect)
         self.t_ref: float | None = None  # the schedule's origin on the simulated clock
+        #: where take_off leaves the vehicle held, for the first leg and OFFBOARD
+        self.t_offboard: float | None = None
 
     def expect(self, seconds: float) -> None:
         """The decision loop promises its next step within `seconds`; past that it is hung and
@@ -82,14 +97,36 @@ class Pilot:
         with self._setpoint_lock:
             self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
             self.link.set_position_ned(*self._setpoint)
-        if self.link.telemetry.mode != "OFFBOARD":  # the autopilot dropped out (e.g. lost setpoints)
-            self.link.set_mode("OFFBOARD")
+        if self.link.telemetry.mode != "OFFBOARD":  # the first leg, or the autopilot dropped out
+            self._enter_offboard()
         return local
+
+    def _enter_offboard(self) -> None:
+        """OFFBOARD, which PX4 refuses (temporarily) until it has a fresh setpoint: the one just
+        sent can be lost on a lossy radio, so the stream's next ones are waited for and the
+        switch asked again (20 % loss: the first ask was refused in one search in ten)."""
+        for attempt in range(OFFBOARD_TRIES):
+            try:
+                self.link.set_mode("OFFBOARD")
+                return
+            except CommandRejected as e:
+                if e.result != mavlink.MAV_RESULT_TEMPORARILY_REJECTED or attempt == OFFBOARD_TRIES - 1:
+                    raise
+                time.sleep(0.3)  # the stream sends six setpoints meanwhile
 
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
         """Wait for GPS and home, fix the schedule's origin t_ref, register the launch point,
-        climb, and start the setpoint stream in OFFBOARD at the hover."""
+        arm at t_ref + ARM_AFTER_S, take off half a second later, and be held at
+        t_ref + OFFBOARD_AFTER_S (`t_offboard`) with the climb done, for the decision loop to
+        send the first leg's setpoint and OFFBOARD there.
+
+        Each of those commands is sent while a companion-lockstep vehicle holds its clock at a
+        capture asked for ahead (the vehicle holds at a timed capture until the companion's
+        next command), so it executes at that simulated instant whatever the wall clock did.
+        Sent on wall-clock timing (as before), the climb began a few milliseconds of simulated
+        time apart from run to run, and one flight in twenty flew a different search from the
+        same seed. Without lockstep the captures only wait for their instants."""
         link = self.link
         link.wait_heartbeat()
         link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
@@ -101,26 +138,58 @@ class Pilot:
         # this process took to get going; the start cell comes from the fixes up to it
         period = self.spec.decision_period_s
         self.t_ref = period * math.ceil((self.intake.first_fix_t + 0.5) / period)
-        self.registration.register_launch()
+        t_arm = max(self.t_ref, self.registration.launch_window()[1]) + ARM_AFTER_S
+        t_climb = t_arm + TAKEOFF_AFTER_ARM_S
+        self.t_offboard = t_climb + CLIMB_S
+        timed = self._ask_ahead((t_arm, t_climb, self.t_offboard))
+        self.registration.register_launch()  # its window ends before t_arm
+        if timed:
+            self._held_at(t_arm, timeout)
         link.arm()
+        if timed:
+            self._held_at(t_climb, timeout)
         link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
-        link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
-                      timeout, f"take-off to {self.spec.altitude_m} m")
-        self.intake.wait_sim_time(self.t_ref, timeout)
+        if timed:
+            self._held_at(self.t_offboard, timeout)
+            # climbing by then (the last decimetres come slowly; OFFBOARD's setpoint finishes them)
+            link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -self.spec.altitude_m / 2, min(timeout, 3.0),
+                          f"take-off above {self.spec.altitude_m / 2:.1f} m by {self.t_offboard:.1f} s (simulated)")
+        else:
+            link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
+                          timeout, f"take-off to {self.spec.altitude_m} m")
+            self.t_offboard = max(self.t_offboard, self.intake.sim_time_s)
         if self.registration.launch_registered:
-            # the climb is flown on wall-clock command timing (AUTO.TAKEOFF holds the estimate
-            # of the instant it was commanded): its fixes would leak centimetres of that timing
-            # into the bias the setpoints are shifted by. The registered launch predicted
-            # forward stands instead; fixes resume with the first leg.
+            # the climb's fixes are left out: the registered launch predicted forward stands
+            # (the hover after the climb refines it before the first decision)
             self.intake.drop_fixes_until(self.t_ref)
         else:
             self.intake.fuse_until(self.t_ref)
-        local = link.telemetry.local
-        self._setpoint = np.array([local["n"], local["e"], -self.spec.altitude_m])
         self.expect(DECISION_DEADLINE_S)
         threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()
-        time.sleep(0.3)  # PX4 wants a setpoint stream before OFFBOARD
-        link.set_mode("OFFBOARD")
+
+    def _ask_ahead(self, times: tuple[float, ...]) -> bool:
+        """Ask for captures at these simulated instants, long before the clock gets there.
+        False when the vehicle has no camera (it answers UNSUPPORTED): then the take-off is
+        flown on command timing, as a vehicle without lockstep flies it anyway."""
+        try:
+            for t in times:
+                self.frames.ask(t)
+        except CommandRejected as e:
+            if e.result != mavlink.MAV_RESULT_UNSUPPORTED:
+                raise
+            log.info("no timed captures on this vehicle (%s): take-off on command timing", e)
+            return False
+        return True
+
+    def _held_at(self, t: float, timeout: float) -> None:
+        """Wait for the frame captured at simulated time t (asked for ahead): a lockstep vehicle
+        holds its clock there until this companion's next command. Asked again only when it
+        does not come (a lossy link lost the ask or the frame): asking releases a hold."""
+        frame, _ = self.frames.wait(t, FRAME_WAIT_S)
+        if frame is None:
+            frame, _ = self.frames.capture(t)
+        if frame is None:
+            raise LinkError(f"no camera frame at {t:.1f} s (simulated) during take-off")
 
     def stop_setpoints(self) -> None:
         """Stop streaming OFFBOARD setpoints (before handing the vehicle to an AUTO mode)."""

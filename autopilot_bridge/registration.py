@@ -68,13 +68,9 @@ class Registration:
         with that true position beside it, which averages the receiver's white noise out of
         the GPS bias, so the first cells are flown truly over their centres. (The vehicle waits
         disarmed for this companion, so those seconds are on the ground in every run.)"""
-        first_fix_t = self.intake.first_fix_t
-        if not self.spec.register or self.link.telemetry.armed or first_fix_t is None:
+        if not self.spec.register or self.link.telemetry.armed or self.intake.first_fix_t is None:
             return
-        # a window on a lattice of the simulated clock after the first fix heard, so a first
-        # fix lost or late by a tick registers the same fixes (reproducible)
-        t_start = LAUNCH_S * math.ceil((first_fix_t + 0.5) / LAUNCH_S)
-        t_end = t_start + LAUNCH_S
+        t_start, t_end = self.launch_window()
         # every fix stamped up to t_end has arrived once a later one has
         self.link.wait_for(lambda: self.intake.last_gps_t > t_end + 1e-6, 30.0, f"GPS fixes after {t_end:.1f} s")
         home = self.intake.home_in_field()[:2]
@@ -90,6 +86,14 @@ class Registration:
         self.launch_registered = True
         log.info("launch point registered over %d fixes: GPS bias (n, e, d) %s m", len(due),
                  np.round(self.estimator.bias_ned, 2))
+
+    def launch_window(self) -> tuple[float, float]:
+        """The simulated seconds whose fixes register the launch point: a window on a lattice of
+        the simulated clock after the first fix heard, so a first fix lost or late by a tick
+        registers the same fixes (reproducible)."""
+        first_fix_t = self.intake.first_fix_t if self.intake.first_fix_t is not None else 0.0
+        t_start = LAUNCH_S * math.ceil((first_fix_t + 0.5) / LAUNCH_S)
+        return t_start, t_start + LAUNCH_S
 
     def register_targets(self, t: float, blobs: list[Blob], cell: np.ndarray) -> tuple[int, bool]:
         """Static targets stand on cell centres: a target seen at a (GPS-free) offset from the

@@ -32,7 +32,7 @@ import numpy as np
 from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 
-from .detector import DetectorConfig, blobs_to_view, find_blobs, valid_moves
+from .detector import DetectorConfig, blobs_to_view, find_blobs, show_beside, valid_moves
 from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import LinkError, VehicleLink
@@ -72,7 +72,7 @@ class PolicyService:
         self.clock = clock
         self.intake = TelemetryIntake(link, spec.origin, self.estimator, spec.arrive_m)
         self.registration = Registration(link, spec, self.estimator, self.intake)
-        self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log)
+        self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log, self.frames)
 
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
@@ -109,12 +109,12 @@ class PolicyService:
         post = self.estimator.posterior()
         cell = np.clip(nearest_cell(post.mean_ned[:2]), [0, 0], [g.width - 1, g.height - 1])
         local = self.pilot.fly_to(cell)
-        # the first decision: take-off and the first leg fit in three periods
-        t_ref = self.pilot.t_ref if self.pilot.t_ref is not None else self.intake.sim_time_s
-        t_k = t_ref + 3 * self.spec.decision_period_s
+        # the first decision: a period after take_off handed over (the first leg and settling)
+        t_off = self.pilot.t_offboard if self.pilot.t_offboard is not None else self.intake.sim_time_s
+        t_k = t_off + self.spec.decision_period_s
         if self.registration.launch_registered:
-            # likewise the climb's tail and the first leg, which starts at the wall-clock instant
-            # this loop began: the hover's fixes before the first decision stand for them
+            # likewise the climb's tail and the first leg: the hover's fixes before the first
+            # decision stand for them
             self.intake.skip_fixes_until(t_k - self.spec.decision_period_s / 2)
         self.policy.reset(g, 1, int(self.rng.integers(1 << 30)))
         found = 0
@@ -170,7 +170,7 @@ class PolicyService:
                 view = blobs_to_view([b for b in blobs if b not in below and b not in aside], where, height,
                                      cell, g.width, g.height)
                 if not below:
-                    self._show_aside(view, aside, height, cell)
+                    show_beside(view, aside, height, cell, g.width, g.height)
                 view[0, 1, 1] |= bool(below)  # under the camera: in this cell, whatever the posterior
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
@@ -224,21 +224,6 @@ class PolicyService:
         if here is None or not self.spec.register or not self.spec.map_from_reading:
             return posterior_mean
         return here + self.intake.home_in_field()[:2] - self.estimator.bias_ned[:2]
-
-    def _show_aside(self, view: np.ndarray, aside: list, height: float, cell: np.ndarray) -> None:
-        """A new target in the believed cell that the camera is not over (further than FOUND_M,
-        still so after re-centring) is not shown in the centre slot: the policy's world counts a
-        target shown there as found (it stands on it), so the belief counted a find the service
-        had not made and swept the field for a target it believed gone (flight seed 4: 185
-        moves against 37). It is shown in the neighbouring slot it lies towards, where the
-        camera has to go to be over it."""
-        g = self.spec.grid
-        for b in aside:
-            n, e = b.offset_ne(height)
-            dy, dx = (-int(np.sign(n)), 0) if abs(n) >= abs(e) else (0, int(np.sign(e)))
-            x, y = int(cell[0]) + dx, int(cell[1]) + dy
-            if 0 <= x < g.width and 0 <= y < g.height:
-                view[0, 1 + dy, 1 + dx] = 1
 
     def stop_setpoints(self) -> None:
         """Stop streaming OFFBOARD setpoints (before handing the vehicle to an AUTO mode)."""

@@ -39,6 +39,8 @@ SETTLED_LOOKBACK_S = 0.5
 LOCAL_KEEP = 10_000
 #: the receiver's fix period (GPS_RAW_INT at 5 Hz)
 FIX_PERIOD_S = 0.2
+#: the autopilot's estimate's period (LOCAL_POSITION_NED at 10 Hz)
+LOCAL_PERIOD_S = 0.1
 
 #: a received GPS fix: (simulated time s, field NED m, eph m, epv m)
 Fix = tuple[float, np.ndarray, float, float]
@@ -134,25 +136,36 @@ class TelemetryIntake:
                 self._fixes.popleft()
         return due
 
+    def _sample_at(self, t: float) -> LocalSample | None:
+        """The autopilot's latest LOCAL_POSITION_NED stamped up to simulated time t, by stamp
+        (a reordering radio delivers samples late), leaving out one stamped within half a
+        sample period of t: whether it has arrived with the frame of t is a race (the vehicle
+        may hold its clock at t for the companion before or after sending it), and taking it
+        or the one before changed a flight's camera estimate by millimetres from run to run.
+        The one before is waited for a little, as fuse_until waits for its fix."""
+        t = t - LOCAL_PERIOD_S / 2
+        try:
+            self.link.wait_for(lambda: bool(self.local_history) and self.local_history[-1][0] > t - LOCAL_PERIOD_S,
+                               0.5, "")
+        except LinkError:
+            pass  # lost on the link: the latest that came
+        window = [x for x in list(self.local_history) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
+        return max(window, key=lambda x: x[0]) if window else None
+
     def settled_at(self, t: float, local_ne: np.ndarray) -> bool:
         """Settled on the setpoint at simulated time t, by the autopilot's latest telemetry
         stamped up to t (deterministic given the trajectory, unless the link lost it)."""
-        # the latest by its stamp, not by arrival: a reordering radio delivers samples late
-        window = [x for x in list(self.local_history) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
-        if not window:
+        sample = self._sample_at(t)
+        if sample is None:
             return False
-        sample = max(window, key=lambda x: x[0])
         _, n, e, vn, ve = sample
         near_m = max(self.arrive_m, SETTLED_M)
         return bool(np.hypot(n - local_ne[0], e - local_ne[1]) < near_m and np.hypot(vn, ve) < SETTLED_SPEED)
 
     def local_at(self, t: float) -> np.ndarray | None:
         """The autopilot's (north, east) estimate at simulated time t by its telemetry."""
-        window = [x for x in list(self.local_history) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
-        if not window:
-            return None
-        _, n, e, _, _ = max(window, key=lambda x: x[0])
-        return np.array([n, e])
+        sample = self._sample_at(t)
+        return None if sample is None else np.array([sample[1], sample[2]])
 
     def wait_sim_time(self, t: float, timeout: float) -> None:
         self.link.wait_for(lambda: self.sim_time_s >= t, timeout, f"simulated time {t:.1f} s")

@@ -120,3 +120,36 @@ def test_a_single_cow_stays_one_target_whatever_its_heading() -> None:
                 assert len(find_blobs(r.camera.render_enu(eye))) == 1, r.field.coats
         finally:
             r.close()
+
+
+def test_a_target_beside_the_camera_lights_the_slot_it_lies_towards_never_the_centre() -> None:
+    """A cow rendered 0.95 m east of the camera, in the camera's own cell but not under it: the
+    policy would count the centre slot as a find, so show_beside lights the east slot."""
+    from autopilot_bridge.detector import blobs_to_view, find_blobs, show_beside
+    from sim.gridworld import cell_to_ned
+    from sim.vehicle.field import cell_to_enu
+
+    r = ViewRenderer(10, 10, 1, image=50, seed=5)
+    try:
+        camera = np.array([5.0 - 0.475, 5.0])  # cells (x, y): 0.95 m west of the cow's cell centre
+        r.field.set_targets(np.array([[5.0, 5.0]]))
+        eye = cell_to_enu(camera, 2.0)
+        eye[2] = 3.44
+        blobs = find_blobs(r.camera.render_enu(eye))
+        assert len(blobs) == 1
+        n, e = blobs[0].offset_ne(3.44)
+        assert 0.8 < e < 1.2 and abs(n) < 0.4
+        cell = np.array([5, 5])
+        # placed by a camera estimate at the cell's centre, the cow is in the centre slot ...
+        assert blobs_to_view(blobs, cell_to_ned(cell), 3.44, cell, 10, 10)[0, 1, 1] == 1
+        view = blobs_to_view([], cell_to_ned(cell), 3.44, cell, 10, 10)
+        show_beside(view, blobs, 3.44, cell, 10, 10)
+        # ... shown beside, it is in the east slot and only there
+        assert view[0].tolist() == [[0, 0, 0], [0, 0, 1], [0, 0, 0]]
+        # on the field's east edge there is no east slot: nothing is lit
+        edge = np.array([9, 5])
+        view = blobs_to_view([], cell_to_ned(edge), 3.44, edge, 10, 10)
+        show_beside(view, blobs, 3.44, edge, 10, 10)
+        assert view[0].sum() == 0
+    finally:
+        r.close()
