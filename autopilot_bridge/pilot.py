@@ -35,6 +35,8 @@ FRAME_DEADLINE_S = 20.0  # a frame request, all its resends included
 ARM_AFTER_S = 0.5
 TAKEOFF_AFTER_ARM_S = 0.5
 CLIMB_S = 5.0
+#: the first leg's setpoint goes out this long after the hand-over (held there too)
+LEG_AFTER_S = 0.5
 #: wall seconds to wait for a frame asked for ahead before asking again
 FRAME_WAIT_S = 5.0
 #: asks for OFFBOARD while it is refused for want of a fresh setpoint
@@ -117,16 +119,16 @@ class Pilot:
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
         """Wait for GPS and home, fix the schedule's origin t_ref, register the launch point,
-        arm at t_ref + ARM_AFTER_S, take off half a second later, and be held at
-        t_ref + OFFBOARD_AFTER_S (`t_offboard`) with the climb done, for the decision loop to
-        send the first leg's setpoint and OFFBOARD there.
+        arm half a second after the later of t_ref and the launch window's end (t_arm), take off
+        half a second later, enter OFFBOARD at the hover CLIMB_S after that (`t_offboard`), and
+        return with the vehicle held LEG_AFTER_S later, for the decision loop's first leg.
 
-        Each of those commands is sent while a companion-lockstep vehicle holds its clock at a
-        capture asked for ahead (the vehicle holds at a timed capture until the companion's
-        next command), so it executes at that simulated instant whatever the wall clock did.
-        Sent on wall-clock timing (as before), the climb began a few milliseconds of simulated
-        time apart from run to run, and one flight in twenty flew a different search from the
-        same seed. Without lockstep the captures only wait for their instants."""
+        Each command is sent while a companion-lockstep vehicle holds its clock at a capture
+        asked for ahead (it holds at a timed capture until the companion's next command), so it
+        executes at that simulated instant whatever the wall clock did. Sent on wall-clock
+        timing (as before), the climb began a few milliseconds of simulated time apart from run
+        to run, and one flight in twenty flew a different search from the same seed. Without
+        lockstep the captures only wait for their instants."""
         link = self.link
         link.wait_heartbeat()
         link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
@@ -141,7 +143,8 @@ class Pilot:
         t_arm = max(self.t_ref, self.registration.launch_window()[1]) + ARM_AFTER_S
         t_climb = t_arm + TAKEOFF_AFTER_ARM_S
         self.t_offboard = t_climb + CLIMB_S
-        timed = self._ask_ahead((t_arm, t_climb, self.t_offboard))
+        t_leg = self.t_offboard + LEG_AFTER_S
+        timed = self._ask_ahead((t_arm, t_climb, self.t_offboard, t_leg))
         self.registration.register_launch()  # its window ends before t_arm
         if timed:
             self._held_at(t_arm, timeout)
@@ -164,8 +167,19 @@ class Pilot:
             self.intake.drop_fixes_until(self.t_ref)
         else:
             self.intake.fuse_until(self.t_ref)
+        # OFFBOARD at the hover, so a companion that hangs from here on leaves a vehicle whose
+        # offboard-loss failsafe brings it home (the stream stops at the loop's deadline)
+        here = self.intake.local_at(self.t_offboard) if timed else None
+        if here is None:
+            here = np.array([link.telemetry.local["n"], link.telemetry.local["e"]])
+        with self._setpoint_lock:
+            self._setpoint = np.array([here[0], here[1], -self.spec.altitude_m])
+            self.link.set_position_ned(*self._setpoint)
         self.expect(DECISION_DEADLINE_S)
         threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()
+        self._enter_offboard()
+        if timed:
+            self._held_at(t_leg, timeout)  # the decision loop's first leg starts here
 
     def _ask_ahead(self, times: tuple[float, ...]) -> bool:
         """Ask for captures at these simulated instants, long before the clock gets there.
