@@ -1,0 +1,75 @@
+"""Found targets register the position again (Registration.register_known), against a real
+vehicle over MAVLink: the autopilot's estimate (LOCAL_POSITION_NED) identifies a found cow when
+it is seen again, and its known cell measures where the camera truly is."""
+
+from __future__ import annotations
+
+import socket
+
+import numpy as np
+
+from autopilot_bridge.detector import Blob, px_per_m
+from autopilot_bridge.estimator import GpsEstimator
+from autopilot_bridge.link import VehicleLink
+from autopilot_bridge.registration import KNOWN_SD_M, Registration
+from autopilot_bridge.search_data import SearchSpec
+from autopilot_bridge.telemetry import TelemetryIntake
+from sim.gridworld import GridConfig, cell_to_ned
+from sim.mavlink import Sitl, SitlConfig
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _blob_at(offset_ne: tuple[float, float], height: float) -> Blob:
+    """A whole (uncut) blob whose target lies offset_ne (north, east m) from the nadir."""
+    k = px_per_m(height)
+    return Blob(row=-offset_ne[0] * k, col=offset_ne[1] * k, pixels=200, cut=(False, False, False, False))
+
+
+def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
+    grid = GridConfig()
+    sitl = Sitl(SitlConfig(instance=31, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
+                           api_local_port=_free_port(), api_remote_port=_free_port(), grid=grid)).start()
+    link = VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}")
+    spec = SearchSpec(origin=sitl.field_origin, grid=grid)
+    estimator = GpsEstimator()
+    intake = TelemetryIntake(link, spec.origin, estimator, spec.arrive_m)
+    reg = Registration(link, spec, estimator, intake)
+    try:
+        link.wait_heartbeat()
+        link.wait_for(lambda: len(intake.local_history) > 5 and intake.has_fixes(), 20, "telemetry")
+        t = intake.local_history[-1][0]
+        intake.fuse_until(t)
+        height = spec.camera_height()
+        cell = np.array([int(v) for v in sitl.episode.agent[0]])  # the vehicle stands on its spawn cell
+        camera = cell_to_ned(cell)
+        # found under the camera, 0.3 m north-east of the nadir, with the camera estimate agreeing
+        # with the commanded cell: its cell is kept
+        found = _blob_at((0.3, 0.2), height)
+        reg.remember(t, [found], camera, cell)
+        assert reg.match(reg.reading_at(t) + np.array([0.3, 0.2])) == 0
+        # the same cow again: where the camera truly is follows from its cell, whatever the GPS
+        before = estimator.posterior(t)
+        used, rest = reg.register_known(t, [found, _blob_at((2.5, -2.4), height)])
+        assert used == 1 and len(rest) == 1, "the found cow registers; the other blob is left for the lattice"
+        after = estimator.posterior(t)
+        z = cell_to_ned(cell) - np.array([0.3, 0.2])
+        assert np.linalg.norm(after.mean_ned[:2] - z) < np.linalg.norm(before.mean_ned[:2] - z) + 1e-9
+        assert np.trace(after.horizontal_cov) < np.trace(before.horizontal_cov)
+        # fused at KNOWN_SD_M (repeat sightings of one cow err alike), not at the detector's 0.3 m
+        prior = np.diag(before.horizontal_cov)
+        assert np.all(np.diag(after.horizontal_cov) > 1.0 / (1.0 / prior + 1.0 / 0.3**2) * 1.2)
+        np.testing.assert_allclose(np.diag(after.horizontal_cov), 1.0 / (1.0 / prior + 1.0 / KNOWN_SD_M**2), rtol=0.05)
+        # found where the camera estimate disagreed with the commanded cell: no cell is kept,
+        # so a re-sighting of it registers nothing (a cell recorded wrong locks frames a cell off)
+        reg2 = Registration(link, spec, estimator, intake)
+        reg2.remember(t, [found], camera + np.array([0.0, 1.5]), cell)
+        used2, rest2 = reg2.register_known(t, [found])
+        assert used2 == 0 and rest2 == []
+    finally:
+        link.close()
+        sitl.stop()
