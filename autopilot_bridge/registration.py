@@ -41,6 +41,11 @@ REGISTER_P = 0.97
 FOUND_M = 0.8
 #: a re-sighting of a found target is fused unless it is this many sigmas off the posterior
 KNOWN_GATE = 5.0
+#: a new target this near the nadir (m, both axes) is beside the camera whichever cell the
+#: camera estimate puts it in: with the camera 0.5-0.8 m off its cell either cell is likely,
+#: and labelled into the neighbour, the cow's own cell was marked seen-empty with the camera
+#: beside it (flight seed 13: 25 moves back and forth next to it). It is centred on first
+NEAR_M = 1.3
 #: the standard deviation a re-sighting of a found target is fused with (m): the same cow seen
 #: again from about the same spot errs the same way (its heading moves the blob's centre), so
 #: its sightings are not independent; fused at the detector's 0.3 m, 20 flights had a mean NEES
@@ -165,7 +170,8 @@ class Registration:
                 continue
             if np.abs(off).max() <= FOUND_M:
                 below.append(b)
-            elif not b.at_edge and blob_cells([b], camera_ne, height)[0] == (int(cell[0]), int(cell[1])):
+            elif not b.at_edge and (np.abs(off).max() <= NEAR_M
+                                    or blob_cells([b], camera_ne, height)[0] == (int(cell[0]), int(cell[1]))):
                 aside.append(b)
         aside.sort(key=lambda b: float(np.abs(b.offset_ne(height)).max()))
         return below, aside

@@ -83,6 +83,9 @@ _BLOCKED = 1e-3
 _LEAK = 1e-3
 #: bound on |log g| of the pair correlation, so that no finite sample rules a cell out entirely
 _LOG_PAIR_CAP = 6.0
+#: a static search under a GPS posterior whose unsighted targets have less than this share of
+#: the placement prior left unseen reopens the cells not visited (_reopen_if_exhausted)
+SOFT_DRY = 0.02
 #: the floor of a view slot's likelihood (policy.belief.state.BeliefState._view_likelihood)
 VIEW_EPS = 0.02
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
@@ -224,6 +227,8 @@ class BeliefState:
         #: prior * (1 - seen) while _crisp (static targets' pool weight)
         self._unseen_prior = np.repeat(self.prior[None], n, axis=0)
         self._reopened = False
+        #: (n,) some position so far was uncertain (a posterior with no cell at >= 0.999)
+        self._uncertain = np.zeros(n, bool)
         #: condition a GPS position posterior on the view's targets too (_view_likelihood)
         self.view_evidence = view_evidence
         self.target = self._target()
@@ -334,6 +339,8 @@ class BeliefState:
         self.age += dt[:, None, None].astype(np.float32)
         p = self._position(obs)
         self.position = p
+        if obs.position_prob is not None:
+            self._uncertain |= p.reshape(self.n, -1).max(axis=1) < 0.999
 
         tgt_slots = views[:, 0].astype(np.float32)  # (n, 3, 3)
         # the unfound density before this observation: self.target is what _target() returned at
@@ -418,7 +425,9 @@ class BeliefState:
         if self.cfg.moving:
             return
         weight = self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
-        dry = (self.unsighted > 0.5) & (weight.sum(axis=(1, 2)) < 1e-9)
+        # once a position was uncertain (a GPS posterior, not one-hot) seen is never quite 1:
+        # a whole target believed in under SOFT_DRY of the prior's mass is the same contradiction
+        dry = (self.unsighted > 0.5) & (weight.sum(axis=(1, 2)) < np.where(self._uncertain, SOFT_DRY, 1e-9))
         if not dry.any():
             return
         self._reopened = True

@@ -127,3 +127,26 @@ def test_reopening_never_happens_with_a_perfect_view():
         x = int(np.clip(x + rng.integers(-1, 2), 0, CFG.width - 1))
         y = int(np.clip(y + rng.integers(-1, 2), 0, CFG.height - 1))
 
+
+
+
+def test_under_a_gps_posterior_a_nearly_dry_pool_reopens_but_an_exact_one_does_not():
+    """Soft positions never make seen exactly 1: a target believed unsighted with under
+    SOFT_DRY of the prior left unseen reopens the cells not visited. With exact positions the
+    same state keeps the last unseen cells as the only places to look (they are)."""
+    from policy.belief.state import SOFT_DRY
+
+    for uncertain in (True, False):
+        b = BeliefState(CFG, 1)
+        b.seen[:] = 1.0 - SOFT_DRY / 2  # every cell all but seen
+        b.visited[0, 2, :] = 1.0  # one row flown
+        b._crisp = False
+        b._uncertain[:] = uncertain
+        b._reopen_if_exhausted()
+        assert b._reopened == uncertain
+        if uncertain:
+            np.testing.assert_allclose(b.seen[0, 2], 1.0 - SOFT_DRY / 2)  # the row flown stays seen
+            assert (b.seen[0, [0, 1, 3, 4]] == 0.0).all()  # the rest is open again
+            assert (b.prior * (1.0 - b.seen[0])).sum() > 0.75  # the pool has somewhere to be
+        else:
+            assert (b.seen[0] == 1.0 - SOFT_DRY / 2).all()
