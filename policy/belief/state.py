@@ -240,8 +240,7 @@ class BeliefState:
         if sighted_sum is None:
             sighted_sum = self._sighted.sum(axis=(1, 2), dtype=np.float64)
         left = self.cfg.n_targets - self.n_found - sighted_sum
-        # prior * (1 - seen), kept up to date cell by cell while seen is 0/1 (the same numbers)
-        weight = self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
+        weight = self._unseen_weight()
         if self._pair is not None:
             # pairwise placement structure: each known target (sighted or found) multiplies the
             # density of the others by the pair correlation at their offset (a lattice's spacing)
@@ -251,6 +250,11 @@ class BeliefState:
         tot = weight.sum(axis=(1, 2))
         scale = np.where(tot > 1e-12, np.maximum(left, 0.0) / np.maximum(tot, 1e-12), 0.0)
         return (weight * scale[:, None, None]).astype(np.float32)
+
+    def _unseen_weight(self) -> np.ndarray:
+        """(n, h, w) prior * (1 - seen): where never-sighted static targets can be. Kept up to
+        date cell by cell while seen is 0/1 (the same numbers)."""
+        return self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
 
     def _target(self, sighted_sum: np.ndarray | None = None) -> np.ndarray:
         if self.cfg.moving:
@@ -424,7 +428,7 @@ class BeliefState:
         self._reopened = False
         if self.cfg.moving:
             return
-        weight = self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
+        weight = self._unseen_weight()
         # once a position was uncertain (a GPS posterior, not one-hot) seen is never quite 1:
         # a whole target believed in under SOFT_DRY of the prior's mass is the same contradiction
         dry = (self.unsighted > 0.5) & (weight.sum(axis=(1, 2)) < np.where(self._uncertain, SOFT_DRY, 1e-9))
