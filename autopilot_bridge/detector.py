@@ -280,5 +280,14 @@ def show_beside(view: np.ndarray, beside: list[Blob], camera_height_m: float, ce
             view[0, 1 + dy, 1 + dx] = 1
 
 
+def show_cells(view: np.ndarray, cells: list[tuple[int, int]], cell: np.ndarray, width: int, height: int) -> None:
+    """Light, in view, the slots of these field cells (x, y) that fall in the 3 x 3 window
+    around `cell` and on the field."""
+    for x, y in cells:
+        r, c = y - int(cell[1]) + 1, x - int(cell[0]) + 1
+        if 0 <= r < 3 and 0 <= c < 3 and 0 <= x < width and 0 <= y < height:
+            view[0, r, c] = 1
+
+
 def valid_moves(cell: np.ndarray, width: int, height: int, n_actions: int = 4) -> np.ndarray:
     return valid_mask(np.asarray(cell)[None], width, height, n_actions)[0]

@@ -175,6 +175,38 @@ class GpsEstimator:
         i_kh = np.eye(9) - k @ h
         self.kf.P = i_kh @ p @ i_kh.T + k @ r @ k.T  # Joseph form
 
+    def observe_position_mixture(self, t: float, axis: int, candidates: np.ndarray, sd_m: float) -> np.ndarray:
+        """Fuse a measurement of the true position along one axis that is one of several
+        candidates (a target seen at a known offset from the camera stands on *some* cell's
+        centre: the camera is at one lattice point less the offset), each as likely a priori.
+        The exact posterior is a Gaussian mixture, one component per candidate weighed by how
+        well it fits the prior; it is collapsed to its mean and covariance (moment matching, as
+        probabilistic data association does), so an ambiguous sighting tightens the posterior
+        only as far as its odds allow and never locks it onto one wrong cell. Returns the
+        candidates' weights."""
+        z = np.asarray(candidates, dtype=float).reshape(-1)
+        if not len(z) or not np.all(np.isfinite(z)) or not (math.isfinite(sd_m) and sd_m > 0):
+            raise ValueError(f"candidates must be finite and sd > 0 (got {z}, {sd_m})")
+        if self._t is None:
+            raise RuntimeError("no GPS fix fused yet")
+        if t > self._t:
+            self._predict_to(t)
+        x, p = self.kf.x, self.kf.P
+        s = float(p[axis, axis]) + sd_m**2
+        k = p[:, axis] / s
+        innov = z - x[axis]
+        w = np.exp(-(innov**2 - (innov**2).min()) / (2.0 * s))
+        w /= w.sum()
+        mean_innov = float(w @ innov)
+        spread = float(w @ innov**2) - mean_innov**2  # variance of the innovation over the candidates
+        self.kf.x = x + k * mean_innov
+        # each component's covariance (the same for all: one measurement model), Joseph form,
+        # plus the spread of the components' means about the mixture's
+        i_kh = np.eye(9)
+        i_kh[:, axis] -= k
+        self.kf.P = i_kh @ p @ i_kh.T + np.outer(k, k) * (sd_m**2 + spread)
+        return w
+
     def doubt_split(self, sd_m: float, axes: tuple[int, ...] = (0, 1)) -> None:
         """Add sd_m^2 of doubt to how the GPS reading splits into position and bias (north,
         east), keeping the doubt on their sum (what the receiver measures) as it is: a position

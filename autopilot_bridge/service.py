@@ -32,7 +32,14 @@ import numpy as np
 from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 
-from .detector import DetectorConfig, blobs_to_view, find_blobs, show_beside, valid_moves
+from .detector import (
+    DetectorConfig,
+    blobs_to_view,
+    find_blobs,
+    show_beside,
+    show_cells,
+    valid_moves,
+)
 from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import LinkError, VehicleLink
@@ -167,8 +174,10 @@ class PolicyService:
                 self.log.frames += 1
                 # each target lights the one cell its centre is in, the camera taken where the
                 # posterior says (GPS-free offsets; a target straddling windows is one target)
-                view = blobs_to_view([b for b in blobs if b not in below and b not in aside], where, height,
-                                     cell, g.width, g.height)
+                told = self.registration.told_cells(t_k, blobs)
+                fresh = [b for b, c in zip(blobs, told, strict=True) if c is None and b not in below and b not in aside]
+                view = blobs_to_view(fresh, where, height, cell, g.width, g.height)
+                show_cells(view, [c for c in told if c is not None], cell, g.width, g.height)
                 if not below:
                     show_beside(view, aside, height, cell, g.width, g.height)
                 view[0, 1, 1] |= bool(below)  # under the camera: in this cell, whatever the posterior
@@ -180,7 +189,7 @@ class PolicyService:
             if below and not self.pmap.met[cell[1], cell[0]] > 0.5:
                 # a target under the camera (GPS-free) that is not one found before: found, here
                 found += 1
-                self.registration.remember(t_k, below, where, cell)
+                self.registration.remember(t_k, below, where, cell, post.horizontal_cov)
                 self.pmap.mark_target()
                 self.log.believed_found.append(move)
                 view[0, 1, 1] = 1

@@ -154,3 +154,35 @@ def test_a_true_position_measurement_makes_the_gps_bias_observable() -> None:
     assert np.abs(est.reading_ne()[0] - before).max() < 0.25
     with pytest.raises(ValueError):
         est.observe_position(3.0, np.array([np.nan, 0.0]), 0.1)
+
+
+def test_a_sighting_on_one_of_several_cells_is_fused_as_a_mixture() -> None:
+    """observe_position_mixture: the posterior's mean and variance along the axis are those of
+    the exact posterior (a Gaussian prior times a sum of Gaussians at the candidates),
+    integrated numerically on a fine grid; a clear sighting tightens like a plain measurement,
+    an ambiguous one (camera midway between two candidates) does not pull the mean."""
+    gps = GpsModel(HomePosition(), 3)
+    est = GpsEstimator()
+    for k in range(30):
+        t = 0.2 * k
+        fix = gps.sample(t, np.zeros(3), np.zeros(3))
+        est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
+    sd = 0.3
+    for cands in (np.array([-1.7, 0.3, 2.3]), np.array([-1.0, 1.0]), np.array([0.9])):
+        trial = GpsEstimator()
+        trial.kf.x, trial.kf.P, trial._t, trial._bias_var = est.kf.x.copy(), est.kf.P.copy(), est._t, est._bias_var
+        m0, v0 = trial.kf.x[1], trial.kf.P[1, 1]
+        cands = cands + m0
+        x = np.linspace(m0 - 8, m0 + 8, 200001)
+        post = np.exp(-(x - m0) ** 2 / (2 * v0)) * np.exp(-((x[:, None] - cands) ** 2) / (2 * sd**2)).sum(axis=1)
+        post /= post.sum()
+        mean, var = float(post @ x), float(post @ (x - post @ x) ** 2)
+        w = trial.observe_position_mixture(trial._t, 1, cands, sd)
+        assert w.sum() == pytest.approx(1.0)
+        assert trial.kf.x[1] == pytest.approx(mean, abs=1e-4)
+        assert trial.kf.P[1, 1] == pytest.approx(var, rel=1e-3)
+        assert np.all(np.linalg.eigvalsh(trial.kf.P) > -1e-12)
+        if len(cands) == 2:  # symmetric about the prior mean: the mean stays, the doubt grows
+            assert trial.kf.x[1] == pytest.approx(m0, abs=1e-9) and trial.kf.P[1, 1] > v0
+    with pytest.raises(ValueError):
+        est.observe_position_mixture(7.0, 0, np.array([]), 0.3)

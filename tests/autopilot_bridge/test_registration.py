@@ -11,7 +11,7 @@ import numpy as np
 from autopilot_bridge.detector import Blob, px_per_m
 from autopilot_bridge.estimator import GpsEstimator
 from autopilot_bridge.link import VehicleLink
-from autopilot_bridge.registration import KNOWN_SD_M, Registration
+from autopilot_bridge.registration import KNOWN_SD_M, RECORD_P, Registration, lattice_p
 from autopilot_bridge.search_data import SearchSpec
 from autopilot_bridge.telemetry import TelemetryIntake
 from sim.gridworld import GridConfig, cell_to_ned
@@ -48,9 +48,9 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
         cell = np.array([int(v) for v in sitl.episode.agent[0]])  # the vehicle stands on its spawn cell
         camera = cell_to_ned(cell)
         # found under the camera, 0.3 m north-east of the nadir, with the camera estimate agreeing
-        # with the commanded cell: its cell is kept
+        # with the commanded cell and the camera well known: its cell is kept
         found = _blob_at((0.3, 0.2), height)
-        reg.remember(t, [found], camera, cell)
+        reg.remember(t, [found], camera, cell, np.eye(2) * 0.1)
         assert reg.match(reg.reading_at(t) + np.array([0.3, 0.2])) == 0
         # the same cow again: where the camera truly is follows from its cell, whatever the GPS
         before = estimator.posterior(t)
@@ -65,11 +65,19 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
         assert np.all(np.diag(after.horizontal_cov) > 1.0 / (1.0 / prior + 1.0 / 0.3**2) * 1.2)
         np.testing.assert_allclose(np.diag(after.horizontal_cov), 1.0 / (1.0 / prior + 1.0 / KNOWN_SD_M**2), rtol=0.05)
         # found where the camera estimate disagreed with the commanded cell: no cell is kept,
-        # so a re-sighting of it registers nothing (a cell recorded wrong locks frames a cell off)
+        # so a re-sighting of it is no known cell's measurement (a cell recorded wrong locks
+        # frames a cell off); it is left to the lattice odds, as any target
         reg2 = Registration(link, spec, estimator, intake)
-        reg2.remember(t, [found], camera + np.array([0.0, 1.5]), cell)
+        reg2.remember(t, [found], camera + np.array([0.0, 1.5]), cell, np.eye(2) * 0.1)
         used2, rest2 = reg2.register_known(t, [found])
-        assert used2 == 0 and rest2 == []
+        assert used2 == 0 and rest2 == [found]
+        # found in the commanded cell but 0.8 m off its centre on both axes with the camera
+        # known to 0.67 m: the neighbours are too likely (held-out seeds 30, 34), no cell kept
+        reg3 = Registration(link, spec, estimator, intake)
+        reg3.remember(t, [found], camera + np.array([0.5, 0.6]), cell, np.eye(2) * 0.45)
+        assert lattice_p(np.array([0.8, 0.8]), np.full(2, 0.45 + found.sd_m**2)).max() < RECORD_P
+        used3, rest3 = reg3.register_known(t, [found])
+        assert used3 == 0 and rest3 == [found]
     finally:
         link.close()
         sitl.stop()
