@@ -81,3 +81,38 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
     finally:
         link.close()
         sitl.stop()
+
+
+def test_a_blob_cut_by_the_frame_registers_only_across_the_cut() -> None:
+    """A target cut by the frame's south edge runs on out of the frame by an unknown part of
+    its length: its centre says where the camera is east-west (registered), not north-south."""
+    grid = GridConfig()
+    sitl = Sitl(SitlConfig(instance=32, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
+                           api_local_port=_free_port(), api_remote_port=_free_port(), grid=grid)).start()
+    link = VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}")
+    spec = SearchSpec(origin=sitl.field_origin, grid=grid)
+    estimator = GpsEstimator()
+    intake = TelemetryIntake(link, spec.origin, estimator, spec.arrive_m)
+    reg = Registration(link, spec, estimator, intake)
+    try:
+        link.wait_heartbeat()
+        link.wait_for(lambda: len(intake.local_history) > 5 and intake.has_fixes(), 20, "telemetry")
+        t = intake.local_history[-1][0]
+        intake.fuse_until(t)
+        height = spec.camera_height()
+        cell = np.array([int(v) for v in sitl.episode.agent[0]])
+        # the camera known to be over its cell's centre, so the lattice odds are high
+        for _ in range(3):
+            estimator.observe_position(t, cell_to_ned(cell), 0.1)
+        k = px_per_m(height)
+        cut = Blob(row=2.0 * k, col=0.1 * k, pixels=120, cut=(False, True, False, False))
+        whole = _blob_at((-1.9, 0.1), height)
+        for blob, moved in ((cut, (False, True)), (whole, (True, True))):
+            before = np.diag(estimator.posterior(t).horizontal_cov).copy()
+            used, _ = reg.register_targets(t, [blob], cell)
+            after = np.diag(estimator.posterior(t).horizontal_cov)
+            assert used == 1
+            assert tuple(bool(v) for v in after < before - 1e-6) == moved, (before, after)
+    finally:
+        link.close()
+        sitl.stop()
