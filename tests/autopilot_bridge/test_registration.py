@@ -51,7 +51,13 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
         # with the commanded cell and the camera well known: its cell is kept
         found = _blob_at((0.3, 0.2), height)
         reg.remember(t, [found], camera, cell, np.eye(2) * 0.1)
-        assert reg.match(reg.reading_at(t) + np.array([0.3, 0.2])) == 0
+        seen = reg.reading_at(t) + np.array([0.3, 0.2])
+        assert reg.match(seen, t) == 0
+        # read 1.4 m off: at once, a new cow on the next cell (the readings cannot drift apart
+        # so far); two minutes later, the found one (the GPS bias drifts ~1 m in that time)
+        assert reg.match(seen + np.array([1.4, 0.0]), t) is None
+        assert reg.match(seen + np.array([1.4, 0.0]), t + 120.0) == 0
+        assert reg.match(seen + np.array([2.0, -2.0]), t + 4.0) is None
         # the same cow again: where the camera truly is follows from its cell, whatever the GPS
         before = estimator.posterior(t)
         used, rest = reg.register_known(t, [found, _blob_at((2.5, -2.4), height)])
