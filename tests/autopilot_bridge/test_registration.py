@@ -5,6 +5,9 @@ it is seen again, and its known cell measures where the camera truly is."""
 from __future__ import annotations
 
 import socket
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,22 +33,46 @@ def _blob_at(offset_ne: tuple[float, float], height: float) -> Blob:
     return Blob(row=-offset_ne[0] * k, col=offset_ne[1] * k, pixels=200, cut=(False, False, False, False))
 
 
-def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
+@dataclass
+class Pad:
+    """A real vehicle standing on its spawn cell, the companion's parts on its link, fixes fused
+    up to t."""
+
+    sitl: Sitl
+    link: VehicleLink
+    spec: SearchSpec
+    estimator: GpsEstimator
+    intake: TelemetryIntake
+    reg: Registration
+    t: float
+    cell: np.ndarray
+
+
+@contextmanager
+def _on_the_pad(instance: int) -> Iterator[Pad]:
     grid = GridConfig()
-    sitl = Sitl(SitlConfig(instance=31, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
+    sitl = Sitl(SitlConfig(instance=instance, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
                            api_local_port=_free_port(), api_remote_port=_free_port(), grid=grid)).start()
     link = VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}")
     spec = SearchSpec(origin=sitl.field_origin, grid=grid)
     estimator = GpsEstimator()
     intake = TelemetryIntake(link, spec.origin, estimator, spec.arrive_m)
-    reg = Registration(link, spec, estimator, intake)
     try:
         link.wait_heartbeat()
         link.wait_for(lambda: len(intake.local_history) > 5 and intake.has_fixes(), 20, "telemetry")
         t = intake.local_history[-1][0]
         intake.fuse_until(t)
-        height = spec.camera_height()
         cell = np.array([int(v) for v in sitl.episode.agent[0]])  # the vehicle stands on its spawn cell
+        yield Pad(sitl, link, spec, estimator, intake, Registration(link, spec, estimator, intake), t, cell)
+    finally:
+        link.close()
+        sitl.stop()
+
+
+def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
+    with _on_the_pad(31) as pad:
+        link, spec, estimator, intake, reg, t, cell = pad.link, pad.spec, pad.estimator, pad.intake, pad.reg, pad.t, pad.cell
+        height = spec.camera_height()
         camera = cell_to_ned(cell)
         # found under the camera, 0.3 m north-east of the nadir, with the camera estimate agreeing
         # with the commanded cell and the camera well known: its cell is kept
@@ -84,29 +111,14 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
         assert lattice_p(np.array([0.8, 0.8]), np.full(2, 0.45 + found.sd_m**2)).max() < RECORD_P
         used3, rest3 = reg3.register_known(t, [found])
         assert used3 == 0 and rest3 == [found]
-    finally:
-        link.close()
-        sitl.stop()
 
 
 def test_a_blob_cut_by_the_frame_registers_only_across_the_cut() -> None:
     """A target cut by the frame's south edge runs on out of the frame by an unknown part of
     its length: its centre says where the camera is east-west (registered), not north-south."""
-    grid = GridConfig()
-    sitl = Sitl(SitlConfig(instance=32, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
-                           api_local_port=_free_port(), api_remote_port=_free_port(), grid=grid)).start()
-    link = VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}")
-    spec = SearchSpec(origin=sitl.field_origin, grid=grid)
-    estimator = GpsEstimator()
-    intake = TelemetryIntake(link, spec.origin, estimator, spec.arrive_m)
-    reg = Registration(link, spec, estimator, intake)
-    try:
-        link.wait_heartbeat()
-        link.wait_for(lambda: len(intake.local_history) > 5 and intake.has_fixes(), 20, "telemetry")
-        t = intake.local_history[-1][0]
-        intake.fuse_until(t)
-        height = spec.camera_height()
-        cell = np.array([int(v) for v in sitl.episode.agent[0]])
+    with _on_the_pad(32) as pad:
+        estimator, reg, t, cell = pad.estimator, pad.reg, pad.t, pad.cell
+        height = pad.spec.camera_height()
         # the camera known to be over its cell's centre, so the lattice odds are high
         for _ in range(3):
             estimator.observe_position(t, cell_to_ned(cell), 0.1)
@@ -119,6 +131,3 @@ def test_a_blob_cut_by_the_frame_registers_only_across_the_cut() -> None:
             after = np.diag(estimator.posterior(t).horizontal_cov)
             assert used == 1
             assert tuple(bool(v) for v in after < before - 1e-6) == moved, (before, after)
-    finally:
-        link.close()
-        sitl.stop()
