@@ -56,6 +56,8 @@ class TelemetryIntake:
         self.link, self.origin, self.estimator, self.arrive_m = link, origin, estimator, arrive_m
         self.last_gps_t = -1.0
         self._fixes: deque[Fix] = deque()  # received, not yet fused
+        #: fixes left unfused because the filter had moved past their stamp (fuse_until)
+        self.fixes_late = 0
         self._fix_lock = threading.Lock()
         #: the autopilot's estimate, LOCAL_POSITION_NED
         self.local_history: deque[LocalSample] = deque(maxlen=LOCAL_KEEP)
@@ -110,9 +112,18 @@ class TelemetryIntake:
             due = []
             while self._fixes and self._fixes[0][0] <= t + 1e-6:
                 due.append(self._fixes.popleft())
+        now = self.estimator.time_s
         for ft, ned, eph, epv in due:
-            if ft > self._dropped_until + 1e-6:
-                self.estimator.update(ft, ned, eph, epv)
+            if ft <= self._dropped_until + 1e-6:
+                continue
+            if now is not None and ft < now - 1e-9:
+                # stamped before a position measurement already fused (a decision that fell
+                # within half a fix period after it, as on a link that delays and reorders):
+                # the filter does not run backwards, so it is left out
+                self.fixes_late += 1
+                continue
+            self.estimator.update(ft, ned, eph, epv)
+            now = ft
 
     def drop_fixes_until(self, t: float) -> None:
         """Discard the fixes stamped up to simulated time t (unfused), those still on their

@@ -131,3 +131,17 @@ def test_a_blob_cut_by_the_frame_registers_only_across_the_cut() -> None:
             after = np.diag(estimator.posterior(t).horizontal_cov)
             assert used == 1
             assert tuple(bool(v) for v in after < before - 1e-6) == moved, (before, after)
+
+
+def test_a_fix_stamped_before_a_fused_position_measurement_is_left_out() -> None:
+    """A decision's position measurement moves the filter to the decision's time; a fix stamped
+    just before it that was left for the next decision (half a fix period) cannot be fused
+    after it: it is counted, not a crash (a lossy link's flight once ended on 'measurement time
+    went backwards')."""
+    with _on_the_pad(33) as pad:
+        ahead = pad.t + 0.5
+        pad.estimator.observe_position(ahead, cell_to_ned(pad.cell), 0.1)
+        pad.link.wait_for(lambda: pad.intake.last_gps_t > ahead + 0.3, 10, "fixes after the measurement")
+        pad.intake.fuse_until(ahead + 0.5)
+        assert pad.intake.fixes_late >= 1
+        assert pad.estimator.time_s >= ahead
