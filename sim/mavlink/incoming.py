@@ -78,11 +78,18 @@ class Incoming:
             then()
 
     def _on_setpoint(self, msg: mavlink.MAVLink_message) -> None:
-        """OFFBOARD setpoints: accepted (and timed) in any mode, flown only in OFFBOARD, as PX4."""
+        """OFFBOARD setpoints: accepted (and timed) in any mode, flown only in OFFBOARD, as PX4;
+        the latest one before OFFBOARD is flown the moment OFFBOARD is entered (`set_mode`), as
+        PX4 does, not when the client's stream happens to send the next (that tied the first
+        metres after the switch to wall-clock timing: one seed flew 86 or 90 moves)."""
         self._offboard_wall_t = self.clock()
         self._offboard_sim_t = self.t
         if self.mode != "OFFBOARD":
+            self._last_setpoint = msg
             return
+        self._fly_setpoint(msg)
+
+    def _fly_setpoint(self, msg: mavlink.MAVLink_message) -> None:
         mask = msg.type_mask
         vel = np.array([msg.vx, msg.vy, msg.vz], dtype=float)
         yaw = None if mask & M.POSITION_TARGET_TYPEMASK_YAW_IGNORE or not math.isfinite(msg.yaw) else float(msg.yaw)

@@ -86,6 +86,8 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         self._target: np.ndarray | None = None  # NED hold/goto target (estimate frame)
         self._offboard_wall_t = -1e9  # when the last offboard setpoint arrived
         self._offboard_sim_t = -1e9  # the same in simulated time
+        #: the latest setpoint heard outside OFFBOARD, flown on entering it (incoming.py)
+        self._last_setpoint: mavlink.MAVLink_message | None = None
         self._manual_wall_t = -1e9  # when the last MANUAL_CONTROL arrived
         self._sticks = np.zeros(4)  # forward, right, up, yaw rate: each in [-1, 1]
         self._velocity_control = False  # the model tracks a velocity, not a position
@@ -151,6 +153,8 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
             self._rtl_phase = 0
             if mode in ("AUTO.LOITER", "POSCTL"):
                 self._hold_here()
+            if mode == "OFFBOARD" and self._last_setpoint is not None:
+                self._fly_setpoint(self._last_setpoint)
         if mode == "AUTO.LAND":
             self.model.land()
 

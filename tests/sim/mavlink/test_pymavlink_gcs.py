@@ -483,3 +483,30 @@ def test_position_mode_flies_on_manual_control_and_holds_when_it_stops(sitl_fact
         assert any("Manual control lost" in t for t in g.texts + sitl.vehicle.counters.statustext)
     finally:
         g.close()
+
+
+def test_offboard_flies_the_last_setpoint_the_moment_it_is_entered(sitl_factory) -> None:
+    """As PX4: setpoints streamed before OFFBOARD are held, and the latest is flown on the switch,
+    not when the client's stream happens to send the next one (which tied the first metres after
+    the switch to wall-clock timing: flights of one seed differed)."""
+    sitl = sitl_factory(physics="kinematic")
+    g = Gcs(sitl.cfg.gcs_ports[1])
+    try:
+        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        start = sitl.vehicle.estimate().copy()
+        ignore_vel_acc = 0b0000_1111_1111_1000
+        for _ in range(3):  # the stream PX4 wants before OFFBOARD; then it stops
+            g.c.mav.set_position_target_local_ned_send(0, g.sysid, 1, M.MAV_FRAME_LOCAL_NED, ignore_vel_acc,
+                                                       start[0] + 5.0, start[1], start[2], 0, 0, 0, 0, 0, 0, 0, 0)
+            time.sleep(0.02)
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0).result == M.MAV_RESULT_ACCEPTED
+        t0 = sitl.t
+        end = time.monotonic() + 5
+        while time.monotonic() < end and sitl.t < t0 + 1.0:
+            time.sleep(0.01)
+        assert sitl.vehicle.mode == "OFFBOARD"
+        assert sitl.vehicle.estimate()[0] - start[0] > 0.5, "flying to the setpoint with no new one sent"
+    finally:
+        g.close()
