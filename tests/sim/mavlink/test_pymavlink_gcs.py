@@ -34,6 +34,13 @@ def _item(g: Gcs, seq: int, cmd: int, lat: float, lon: float, alt: float):
                                            int(lat * 1e7), int(lon * 1e7), alt, M.MAV_MISSION_TYPE_MISSION)
 
 
+def _take_off(g: Gcs) -> None:
+    """Arm, take off (to MIS_TAKEOFF_ALT) and wait until the vehicle says it is in the air."""
+    assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+    assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
+    assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+
+
 def test_pymavlink_flight_and_mission_download(sitl_factory) -> None:
     sitl = sitl_factory(physics="pybullet", camera=False)
     g = Gcs(sitl.cfg.gcs_ports[1])
@@ -105,9 +112,7 @@ def test_command_acks_are_honest(sitl_factory) -> None:
         t0 = time.monotonic()
         n = sum(g.recv("ATTITUDE", 1) is not None for _ in range(20))
         assert n == 20 and time.monotonic() - t0 < 2.0
-        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
-        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        _take_off(g)
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0).result == M.MAV_RESULT_DENIED, "no disarm in the air"
         # COMMAND_INT: reposition 5 m north at 4 m relative altitude, lat/lon as integers
         home = g.recv("HOME_POSITION", 5)
@@ -295,9 +300,7 @@ def test_velocity_setpoints_stop_at_the_geofence(sitl_factory) -> None:
     sitl = sitl_factory(physics="kinematic", geofence=Geofence(max_horizontal_m=12.0, max_altitude_m=10.0))
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
-        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
-        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        _take_off(g)
         vel_only = 0b0000_1101_1100_0111  # ignore position, acceleration, yaw, yaw rate
 
         def north(n: int) -> None:
@@ -385,9 +388,7 @@ def test_return_to_launch_climbs_returns_lands_and_disarms(sitl_factory) -> None
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
         home = g.recv("HOME_POSITION", 5)
-        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
-        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        _take_off(g)
         north = home.latitude * 1e-7 + 8 / 111_200.0
         ack = g.command(M.MAV_CMD_DO_REPOSITION, -1, 0, 0, math.nan, north, home.longitude * 1e-7, home.altitude * 1e-3 + 3.5)
         assert ack.result == M.MAV_RESULT_ACCEPTED
@@ -457,9 +458,7 @@ def test_position_mode_flies_on_manual_control_and_holds_when_it_stops(sitl_fact
     sitl = sitl_factory(physics="kinematic")
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
-        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
-        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        _take_off(g)
         time.sleep(0.5)
 
         def sticks(x: int, y: int, z: int, seconds: float) -> None:
@@ -492,9 +491,7 @@ def test_offboard_flies_the_last_setpoint_the_moment_it_is_entered(sitl_factory)
     sitl = sitl_factory(physics="kinematic")
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
-        assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan).result == M.MAV_RESULT_ACCEPTED
-        assert g.recv("EXTENDED_SYS_STATE", 10, lambda m: m.landed_state == M.MAV_LANDED_STATE_IN_AIR)
+        _take_off(g)
         start = sitl.vehicle.estimate().copy()
         ignore_vel_acc = 0b0000_1111_1111_1000
         for _ in range(3):  # the stream PX4 wants before OFFBOARD; then it stops
