@@ -253,10 +253,7 @@ def blobs_to_view(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: flo
     inside = (ys >= 0) & (ys < height) & (xs >= 0) & (xs < width)
     view = np.zeros((3, 3, 3), dtype=np.uint8)
     near = [b for b in blobs if not b.beyond_view(camera_height_m)]
-    for x, y in blob_cells(near, camera_ne, camera_height_m):
-        r, c = y - int(cell[1]) + 1, x - int(cell[0]) + 1
-        if 0 <= r < 3 and 0 <= c < 3 and inside[r, c]:
-            view[0, r, c] = 1
+    show_cells(view, blob_cells(near, camera_ne, camera_height_m), cell, width, height)
     view[1] = ~inside
     view[2, 1, 1] = 1
     return view
