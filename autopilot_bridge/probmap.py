@@ -62,7 +62,15 @@ class ProbabilisticVisitationMap:
 
     def visit(self, mean_ne: np.ndarray, cov_ne: np.ndarray) -> np.ndarray:
         """One decision step at the posterior (mean, cov). Returns P(in cell) now."""
-        p = cell_probabilities(mean_ne, cov_ne, self.width, self.height, self.cell_m)
+        return self.visit_cells(cell_probabilities(mean_ne, cov_ne, self.width, self.height, self.cell_m))
+
+    def visit_cells(self, p: np.ndarray) -> np.ndarray:
+        """One decision step with P(in cell) given per cell ((h, w), e.g. a Gaussian sum's
+        `cell_probabilities` weighed by its components). Returns p."""
+        p = np.asarray(p, dtype=float)
+        if p.shape != self.visited.shape or not np.all(np.isfinite(p)) or p.min() < 0 or p.sum() > 1.01:
+            raise ValueError(f"cell probabilities must be a ({self.height}, {self.width}) array of "
+                             f"non-negative numbers summing to at most 1 (got shape {p.shape}, sum {p.sum():.3g})")
         self.visited = 1.0 - (1.0 - self.visited) * (1.0 - p)
         self.current = p
         # as the grid world's spatiotemporal map: every value decays by 1 a step, the current

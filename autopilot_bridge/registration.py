@@ -21,7 +21,7 @@ from .detector import Blob, blob_cells
 from .estimator import GpsEstimator
 from .link import VehicleLink
 from .search_data import SearchSpec
-from .telemetry import TelemetryIntake
+from .telemetry import READING_SD_M, TelemetryIntake
 
 log = logging.getLogger(__name__)
 
@@ -30,15 +30,6 @@ log = logging.getLogger(__name__)
 LAUNCH_SD_M = 0.05
 #: simulated seconds of fixes on the launch point registered before arming
 LAUNCH_S = 2.0
-#: a target seen on a cell's centre measures the camera's true position up to which cell it
-#: stands on: each axis along which its nearest lattice point is at least this probable (odds
-#: against the next one) is registered as a mixture over the lattice points
-#: (`GpsEstimator.observe_position_mixture`); below it the mixture would widen the posterior.
-#: Before, a sighting was fused as if its cell were sure, so only at odds >= 0.97 (0.9 locked
-#: frames a cell off: NEES 3.5): with the posterior's usual 0.7-0.8 m nothing passed for
-#: minutes (flight seed 19: no registration in 60 moves, 1.64-1.75 x the grid world's moves;
-#: 40 flights: flight/grid mean 1.08, 3 over 1.5 -> 0.99, 1 over 1.5)
-SOFT_P = 0.8
 #: a found target's cell is recorded (for `register_known`) only where the posterior makes it
 #: this probable per axis at the find: a cow found with the camera estimate 1-1.5 m off was
 #: recorded a cell off and every re-sighting then locked the frame there (held-out flight seeds
@@ -113,6 +104,11 @@ class Registration:
                 log.warning("the vehicle is not at home (%.1f m off): launch point not registered", np.hypot(*err))
                 return
             self.estimator.observe_position(ft, home, LAUNCH_SD_M)
+        if due and self.spec.map_from_reading and self.intake.fuse_reading(t_end, READING_SD_M):
+            # the autopilot's estimate on the pad: home plus the bias, without the fixes' white
+            # noise, which 2 s of fixes average to 0.19 m sd only (flight seed 43: the bias
+            # registered 0.5 m off on both axes, and the first registrations by cows a cell off)
+            self.estimator.observe_position(self.estimator.time_s or t_end, home, LAUNCH_SD_M)
         self.launch_registered = True
         log.info("launch point registered over %d fixes: GPS bias (n, e, d) %s m", len(due),
                  np.round(self.estimator.bias_ned, 2))
@@ -128,12 +124,15 @@ class Registration:
     def register_targets(self, t: float, blobs: list[Blob], cell: np.ndarray) -> tuple[int, bool]:
         """Static targets stand on cell centres: a target seen at a (GPS-free) offset from the
         camera says where the camera truly is, up to which cell it stands in. Each blob is fused
-        along each axis where its nearest lattice point is at least SOFT_P probable given the
-        posterior, as a mixture over that point and its neighbours (so the odds, not a guess,
-        decide how far it tightens the posterior); so is, whatever the odds, a target placed off the
-        field (targets stand on it: the frame is a cell off, so it is put on the nearest cell
-        of the field). Returns how many were fused and whether a target fused in the believed
-        cell is off the nadir by more than FOUND_M (the vehicle is not truly over it yet)."""
+        along each axis as a mixture over the cell the posterior puts it on and the field's cells
+        either side (`GpsEstimator.observe_position_mixture`: the posterior is a Gaussian sum,
+        so the odds, not a guess, decide, and a frame a cell off is kept as a hypothesis, not
+        averaged in). Before the Gaussian sum only an axis at odds >= 0.8 was fused, and each
+        sighting was collapsed to one Gaussian: held-out flights (seeds 40-59) NEES 3.35, now
+        1.74. A target placed off the field along an axis forces that axis onto the nearest cell
+        of the field (targets stand on it: the frame is a cell off). Returns how many were
+        fused and whether a target fused in the believed cell is off the nadir by more than
+        FOUND_M (the vehicle is not truly over it yet)."""
         if not self.spec.register or self.spec.grid.moving or not blobs:
             return 0, False
         g = self.spec.grid
@@ -143,21 +142,16 @@ class Registration:
         for b in sorted(blobs, key=lambda b: b.sd_m):
             if b.beyond_view(height):
                 continue
-            post = self.estimator.posterior(t)
-            mean = post.mean_ned[:2]
+            mean = self.estimator.posterior(t).mean_ned[:2]
             offset = np.asarray(b.offset_ne(height))
             (cx, cy), = blob_cells([b], mean, height)
             on = (int(np.clip(cx, 0, g.width - 1)), int(np.clip(cy, 0, g.height - 1)))
             # per axis (north, east): is the target placed off the field along it?
             off_field = np.array([on[1] != cy, on[0] != cx])
             z = cell_to_ned(np.array(on)) - offset  # where the camera is, if the target is there
-            r = np.abs(z - mean)
-            s2 = np.diag(post.horizontal_cov) + b.sd_m**2
-            # 1-D odds of the nearest lattice point against the next one along each axis
-            odds = lattice_p(r, s2, cell_m)
-            # each axis on its own: the lattice is a product of two, the posterior ~isotropic.
-            # Off the field along an axis, that axis is forced (whatever the odds); the other
-            # is not (it registered a cow placed a column off: seed 3, NEES 27 after)
+            # each axis on its own: the lattice is a product of two. Off the field along an
+            # axis, that axis is forced; the other is not (it registered a cow placed a column
+            # off: seed 3, NEES 27 after)
             forced = tuple(int(i) for i in np.flatnonzero(off_field))
             # a blob cut by the frame's edge says little of its target's centre across that
             # edge (the target runs on out of the frame by an unknown part of its length): that
@@ -165,7 +159,7 @@ class Registration:
             # north axis registered a row off, NEES 20-45 for the rest of the flight)
             cut_n, cut_s, cut_w, cut_e = b.cut
             cut_axis = np.array([cut_n or cut_s, cut_w or cut_e])
-            soft = tuple(int(i) for i in np.flatnonzero(~off_field & ~cut_axis & (odds >= SOFT_P)))
+            soft = tuple(int(i) for i in np.flatnonzero(~off_field & ~cut_axis))
             if not forced and not soft:
                 continue
             if forced:
@@ -173,7 +167,7 @@ class Registration:
                 self.estimator.observe_position(t, z[list(forced)], b.sd_m, forced)
             for i in soft:
                 # the cell it stands on along this axis and the field's cells either side of it
-                # (north is -y, east is x), as a mixture weighed by the posterior
+                # (north is -y, east is x), as a mixture weighed by the posterior's components
                 idx, size = (on[1], g.height) if i == 0 else (on[0], g.width)
                 near = [j for j in (idx - 1, idx, idx + 1) if 0 <= j < size]
                 centres = np.array([-cell_m * j if i == 0 else cell_m * j for j in near])

@@ -47,7 +47,7 @@ from .pilot import DECISION_DEADLINE_S, FRAME_DEADLINE_S, Pilot
 from .probmap import ProbabilisticVisitationMap, cell_probabilities
 from .registration import Registration
 from .search_data import Progress, SearchLog, SearchSpec, save_log
-from .telemetry import TelemetryIntake
+from .telemetry import READING_SD_M, TelemetryIntake
 
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 
@@ -130,6 +130,8 @@ class PolicyService:
                 frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
                 t0 = time.perf_counter()
                 self.intake.fuse_until(t_k)
+                if self.spec.register and self.spec.map_from_reading:
+                    self.intake.fuse_reading(t_k, READING_SD_M)
                 blobs = find_blobs(frame, self.det) if frame is not None else []
                 known, rest = self.registration.register_known(t_k, blobs)
                 registered, _ = self.registration.register_targets(t_k, rest, cell)
@@ -153,12 +155,12 @@ class PolicyService:
             post = self.estimator.posterior(t_k)
             exact = self.spec.visit_map == "hard"
             if not exact:  # known to the cell: the crisp visit, as the grid world's
-                p_cell = cell_probabilities(where, post.horizontal_cov, g.width, g.height)
+                p_cell = self._cell_probabilities(t_k)
                 exact = bool(p_cell[cell[1], cell[0]] >= self.spec.exact_above)
             if exact:
                 self.pmap.visit(cell_to_ned(cell), np.eye(2) * 1e-6)
             else:
-                self.pmap.visit(where, post.horizontal_cov)
+                self.pmap.visit_cells(p_cell)
             self.log.exact.append(exact)
             self.log.camera_ne.append([round(float(v), 4) for v in where])
             self.log.posterior_sd_m.append(float(np.sqrt(post.horizontal_cov.trace() / 2)))
@@ -221,6 +223,22 @@ class PolicyService:
             t_k = t_k + self.spec.decision_period_s
         self.log.wall_s = self.clock() - t_start
         return self.log
+
+    def _cell_probabilities(self, t: float) -> np.ndarray:
+        """(h, w) P(the camera is over each cell) at simulated time t: the position posterior's
+        components (`GpsEstimator.components`, one per lattice hypothesis), each placed as
+        `_camera_ne` places the likeliest, weighed."""
+        g = self.spec.grid
+        weights, means, covs = self.estimator.components(t)
+        bias = self.estimator.component_bias()
+        here = self.intake.local_at(t)
+        p = np.zeros((g.height, g.width))
+        for w, mean, cov, b in zip(weights, means, covs, bias, strict=True):
+            where = mean[:2]
+            if here is not None and self.spec.register and self.spec.map_from_reading:
+                where = here + self.intake.home_in_field()[:2] - b[:2]
+            p += w * cell_probabilities(where, cov[:2, :2], g.width, g.height)
+        return p
 
     def _camera_ne(self, t: float, posterior_mean: np.ndarray) -> np.ndarray:
         """Where the camera is at simulated time t (field north, east), for the map and the view:

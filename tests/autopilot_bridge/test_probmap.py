@@ -46,3 +46,18 @@ def test_uncertain_visits_are_soft() -> None:
     assert 0 < m[5, 4] < m[5, 5] < 10
     pmap.mark_target()
     assert pmap.expected_map(memory=True)[0, 5, 4] > m[5, 4]
+
+
+def test_a_visit_spread_over_a_gaussian_sum_is_the_weighed_visits() -> None:
+    """visit_cells takes P(in cell) from any posterior (the estimator's Gaussian sum: one
+    component per lattice hypothesis); bad input names what is wrong."""
+    a, b = cell_to_ned((5, 5)), cell_to_ned((6, 5))
+    p = 0.7 * cell_probabilities(a, np.eye(2) * 0.09, 10, 10) + 0.3 * cell_probabilities(b, np.eye(2) * 0.09, 10, 10)
+    pmap = ProbabilisticVisitationMap(10, 10)
+    pmap.visit_cells(p)
+    assert pmap.current[5, 5] == pytest.approx(0.7, abs=0.01) and pmap.current[5, 6] == pytest.approx(0.3, abs=0.01)
+    assert pmap.most_likely_cell() == (5, 5)
+    with pytest.raises(ValueError, match=r"\(10, 10\)"):
+        pmap.visit_cells(np.ones((9, 10)) / 90)
+    with pytest.raises(ValueError, match="sum 2"):
+        pmap.visit_cells(np.ones((10, 10)) / 50)
