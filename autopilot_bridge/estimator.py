@@ -32,6 +32,10 @@ PRIOR_VAR = 1e4
 PRUNE_W = 1e-3
 MERGE_SIGMAS = 2.0
 MAX_COMPONENTS = 8
+#: position + bias (north, east): what the receiver and the autopilot's estimate measure
+_READING_H = np.zeros((2, 9))
+_READING_H[[0, 1], [0, 1]] = 1.0
+_READING_H[[0, 1], [6, 7]] = 1.0
 
 
 @dataclass(frozen=True)
@@ -223,6 +227,19 @@ class GpsEstimator:
         self._linear_update(self._h, z, r)
         return True
 
+    def _measurement_at(self, t: float, z: np.ndarray, sd_m: float, what: str) -> np.ndarray:
+        """Check a GPS-free measurement (finite, sd > 0, after the first fix) and predict the
+        filter to its time t; times before the last fused fix are taken as now (the filter does
+        not run backwards). Returns z as floats."""
+        z = np.asarray(z, dtype=float).reshape(-1)
+        if not len(z) or not np.all(np.isfinite(z)) or not (math.isfinite(sd_m) and sd_m > 0):
+            raise ValueError(f"{what} must be finite and sd > 0 (got {z}, {sd_m})")
+        if self._t is None:
+            raise RuntimeError("no GPS fix fused yet")
+        if t > self._t:
+            self._predict_to(t)
+        return z
+
     def observe_position(self, t: float, position: np.ndarray, sd_m: float, axes: tuple[int, ...] = (0, 1)) -> None:
         """Fuse a measurement of the true position along `axes` (0 north, 1 east, 2 down; no GPS
         bias in it): the vehicle on the ground at its surveyed launch point, a target seen at a
@@ -230,13 +247,7 @@ class GpsEstimator:
         target's size. It is what makes the bias observable: GPS alone cannot tell the bias from
         the position. Times before the last fused fix are taken as now (the filter does not run
         backwards)."""
-        z = np.asarray(position, dtype=float).reshape(len(axes))
-        if not np.all(np.isfinite(z)) or not (math.isfinite(sd_m) and sd_m > 0):
-            raise ValueError(f"position must be finite and sd > 0 (got {z}, {sd_m})")
-        if self._t is None:
-            raise RuntimeError("no GPS fix fused yet")
-        if t > self._t:
-            self._predict_to(t)
+        z = self._measurement_at(t, np.asarray(position, dtype=float).reshape(len(axes)), sd_m, "position")
         m = len(axes)
         h = np.zeros((m, 9))
         h[np.arange(m), list(axes)] = 1.0
@@ -250,17 +261,8 @@ class GpsEstimator:
         position's mean is then that reading less the bias, not the few fixes' average (which
         kept ~0.6 m of white noise: a cow 0.95 m off the nadir then fitted the wrong cell, held-
         out flight seed 43). Times before the last fused fix are taken as now."""
-        z = np.asarray(reading_ne, dtype=float).reshape(2)
-        if not np.all(np.isfinite(z)) or not (math.isfinite(sd_m) and sd_m > 0):
-            raise ValueError(f"reading must be finite and sd > 0 (got {z}, {sd_m})")
-        if self._t is None:
-            raise RuntimeError("no GPS fix fused yet")
-        if t > self._t:
-            self._predict_to(t)
-        h = np.zeros((2, 9))
-        h[[0, 1], [0, 1]] = 1.0
-        h[[0, 1], [6, 7]] = 1.0
-        self._linear_update(h, z, np.eye(2) * sd_m**2)
+        z = self._measurement_at(t, np.asarray(reading_ne, dtype=float).reshape(2), sd_m, "reading")
+        self._linear_update(_READING_H, z, np.eye(2) * sd_m**2)
 
     def observe_position_mixture(self, t: float, axis: int, candidates: np.ndarray, sd_m: float) -> np.ndarray:
         """Fuse a measurement of the true position along one axis that is one of several
@@ -269,13 +271,7 @@ class GpsEstimator:
         The exact posterior is a Gaussian sum: each component splits into one per candidate,
         weighed by how well the candidate fits it; components that land on the same hypothesis
         are merged and the unlikely pruned (`_reduce`). Returns the candidates' weights."""
-        z = np.asarray(candidates, dtype=float).reshape(-1)
-        if not len(z) or not np.all(np.isfinite(z)) or not (math.isfinite(sd_m) and sd_m > 0):
-            raise ValueError(f"candidates must be finite and sd > 0 (got {z}, {sd_m})")
-        if self._t is None:
-            raise RuntimeError("no GPS fix fused yet")
-        if t > self._t:
-            self._predict_to(t)
+        z = self._measurement_at(t, candidates, sd_m, "candidates")
         n, m = len(self._logw), len(z)
         p = self._p
         s = p[:, axis, axis] + sd_m**2  # (n,)
@@ -360,10 +356,7 @@ class GpsEstimator:
         if self._t is None:
             raise RuntimeError("no GPS fix fused yet")
         x, p = _moments(self.weights, *self._predicted(t))
-        h = np.zeros((2, 9))
-        h[[0, 1], [0, 1]] = 1.0
-        h[[0, 1], [6, 7]] = 1.0
-        return h @ x, np.diag(h @ p @ h.T).copy()
+        return _READING_H @ x, np.diag(_READING_H @ p @ _READING_H.T).copy()
 
     def drift_var(self, dt: float) -> np.ndarray:
         """Variance (north, east) of the bias's change over dt seconds (Gauss-Markov)."""
