@@ -3,6 +3,8 @@ time too), requested messages, STATUSTEXT and camera frames. A mixin of MavlinkV
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
@@ -91,12 +93,21 @@ class Streams:
                 if due < soonest:
                     soonest = due
                 continue
-            # due in simulated time; but never more than MAX_STREAM_SPEEDUP x the rate in wall time,
-            # so a simulation racing ahead (speedup 0) cannot flood a client's receive buffer
+            # on the lattice of its period in simulated time (k / hz), not a period after it was
+            # last sent: the phase was set by when the companion asked for the stream (a wall-
+            # clock race), so the sample a decision reads at its instant was stamped .92 in one
+            # run and .86 in another on a loaded machine, and the flight differed (seed 2: 60 or
+            # 24 moves)
+            nxt = (math.floor(te * hz) + 1.0) / hz
+            # never more than MAX_STREAM_SPEEDUP x the rate in wall time, so a simulation racing
+            # ahead (speedup 0) cannot flood a client's receive buffer: a sample due too soon on
+            # the wall clock is left out, not sent late (its stamp would be off the lattice)
             if now < next_wall.get(msg_id, 0.0):
-                soonest = t  # held back by the wall clock: look again next tick
+                next_due[msg_id] = nxt
+                if nxt < soonest:
+                    soonest = nxt
                 continue
-            next_due[msg_id] = due = t + 1.0 / hz
+            next_due[msg_id] = due = nxt
             if due < soonest:
                 soonest = due
             next_wall[msg_id] = now + 1.0 / (hz * MAX_STREAM_SPEEDUP)
