@@ -338,7 +338,7 @@ class GpsEstimator:
 
     def components(self, t: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The posterior's components at time t: weights (n,), position means (n, 3) and
-        covariances (n, 3, 3); bias means (n, 3) alongside as the fourth."""
+        covariances (n, 3, 3), in `component_bias`' order."""
         if self._t is None:
             raise RuntimeError("no GPS fix fused yet")
         x, p = self._predicted(t)

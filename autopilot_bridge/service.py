@@ -234,10 +234,7 @@ class PolicyService:
         here = self.intake.local_at(t)
         p = np.zeros((g.height, g.width))
         for w, mean, cov, b in zip(weights, means, covs, bias, strict=True):
-            where = mean[:2]
-            if here is not None and self.spec.register and self.spec.map_from_reading:
-                where = here + self.intake.home_in_field()[:2] - b[:2]
-            p += w * cell_probabilities(where, cov[:2, :2], g.width, g.height)
+            p += w * cell_probabilities(self._place(here, mean[:2], b), cov[:2, :2], g.width, g.height)
         return p
 
     def _camera_ne(self, t: float, posterior_mean: np.ndarray) -> np.ndarray:
@@ -247,10 +244,14 @@ class PolicyService:
         The companion's posterior mean also carries its fixes' white noise (flight seed 5: 0.57
         and 0.93 m rms per axis against 0.45 and 0.92). Without telemetry at t, or without
         registration (no bias estimated): the posterior mean."""
-        here = self.intake.local_at(t)
+        return self._place(self.intake.local_at(t), posterior_mean, self.estimator.bias_ned)
+
+    def _place(self, here: np.ndarray | None, posterior_mean: np.ndarray, bias_ned: np.ndarray) -> np.ndarray:
+        """The camera (field north, east) from the autopilot's estimate `here` (local; None
+        without telemetry) less a bias, or the posterior mean (see `_camera_ne`)."""
         if here is None or not self.spec.register or not self.spec.map_from_reading:
             return posterior_mean
-        return here + self.intake.home_in_field()[:2] - self.estimator.bias_ned[:2]
+        return here + self.intake.home_in_field()[:2] - bias_ned[:2]
 
     def stop_setpoints(self) -> None:
         """Stop streaming OFFBOARD setpoints (before handing the vehicle to an AUTO mode)."""
