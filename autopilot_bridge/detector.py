@@ -87,6 +87,12 @@ EDGE_PUSH_M = 0.35
 EDGE_BEYOND_M = 1.95
 #: smaller blobs are specks (a leg at the frame's edge, rendering noise): ignored
 MIN_BLOB_PX = 4
+#: a blob inside the frame (not cut by its edge) smaller than this is no target: a whole cow
+#: inside the frame is 65 px or more, a part split off two touching ones 16 or more; the legs
+#: of a cow whose back is beyond the frame show inside it (perspective: the legs are lower, so
+#: nearer the nadir in the image) as specks of 4-7 px, each read as a target in the next cell
+#: (flight seed 59: the policy went back and forth to an empty cell for 290 moves)
+MIN_WHOLE_PX = 12
 #: the camera hangs this far below the airframe's reference point (sim.vehicle.camera)
 CAMERA_BELOW_M = 0.06
 
@@ -149,8 +155,8 @@ def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> lis
     centres = ndimage.center_of_mass(off, lab, idx)
     out = []
     for i, (size, (cy, cx), (ys, xs)) in enumerate(zip(sizes, centres, ndimage.find_objects(lab), strict=True)):
-        if size >= MIN_BLOB_PX:
-            cut = (ys.start == 0, ys.stop == h, xs.start == 0, xs.stop == w)
+        cut = (ys.start == 0, ys.stop == h, xs.start == 0, xs.stop == w)
+        if size >= MIN_BLOB_PX and (any(cut) or size >= MIN_WHOLE_PX):
             inner = 0.0
             if any(cut):  # only cut blobs need it
                 py, px = np.nonzero(lab[ys, xs] == i + 1)

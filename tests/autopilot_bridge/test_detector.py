@@ -135,6 +135,33 @@ def test_two_touching_cows_of_one_coat_are_two_targets() -> None:
             r.close()
 
 
+def test_the_legs_of_cows_beyond_the_frame_are_not_targets() -> None:
+    """Two cows 4 m south, their backs beyond the frame: their legs are lower, so nearer the
+    nadir in the image, and one shows as a 4 px speck inside the frame. Read as a target in the
+    next cell, the policy went back and forth to that empty cell for 290 moves (flight seed 59)."""
+    from autopilot_bridge.detector import blobs_to_view, find_blobs
+    from sim.gridworld import cell_to_ned
+    from sim.vehicle.frames import ned_to_enu
+
+    r = ViewRenderer(10, 10, 2, image=50, seed=0)
+    try:
+        r.field.set_targets(np.array([[6.0, 3.0], [7.0, 3.0]]), np.array([-1.43, -1.16]))
+        frame = r.camera.render_enu(ned_to_enu(np.array([-2.0, 11.6, -3.43])))  # over cell (6, 1), 0.4 m west
+        from scipy import ndimage
+
+        off = np.linalg.norm(frame.astype(float) - np.median(frame.reshape(-1, 3), axis=0), axis=-1) > 70
+        lab, n = ndimage.label(off, np.ones((3, 3), bool))
+        inside = [(lab[sl] == k + 1).sum() for k, sl in enumerate(ndimage.find_objects(lab))
+                  if sl[0].start > 0 and sl[0].stop < 50 and sl[1].start > 0 and sl[1].stop < 50]
+        assert inside and max(inside) <= 7, inside  # the speck is there
+        blobs = find_blobs(frame)
+        assert all(b.at_edge for b in blobs), [(b.row, b.col, b.pixels) for b in blobs]
+        view = blobs_to_view(blobs, cell_to_ned(np.array([5.8, 1.0])), 3.37, np.array([6, 1]), 10, 10)
+        assert not view[0].any()
+    finally:
+        r.close()
+
+
 def test_a_single_cow_stays_one_target_whatever_its_heading() -> None:
     """The erosion that parts touching cows must not cut a cow's head off at the neck."""
     from autopilot_bridge.detector import find_blobs
