@@ -34,6 +34,23 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")
 
+    @app.command("flight-pool")
+    def flight_pool(
+        tables: list[Path] = typer.Argument(..., help="flight_vs_grid.json files of one revision (e.g. seeds 0-19, 20-39)."),
+        out: Path = typer.Option(Path("results"), "--out"),
+    ) -> None:
+        """Pool flight tables into one summary over all their flights, with 95 % intervals."""
+        from missions.flight_table import pool_tables
+
+        try:
+            doc = pool_tables(tables, out)
+        except ValueError as e:
+            raise typer.BadParameter(str(e), param_hint="TABLES") from e
+        s = doc["summary"]
+        ci = s["ratio_mean_ci95"] or [float("nan")] * 2
+        typer.echo(f"{s['flights']} flights: flight/grid mean {s['ratio_mean']:.3f} (95 %: {ci[0]:.3f}-{ci[1]:.3f}), "
+                   f"over 1.5: {s['over_1_5']}; mean NEES {s['nees_mean']:.2f}; {out / 'flight_pool.md'}")
+
     @app.command("gps-table")
     def gps_table(
         seeds: int = typer.Option(12, "--seeds", help="Flights per row."),
