@@ -124,20 +124,9 @@ class Blob:
         """Standard deviation of the offset per axis (the calibration's rms, widened at edges)."""
         return 0.4 if self.at_edge else 0.3
 
-    def beyond_view(self, camera_height_m: float, off_centre_ne: np.ndarray | None = None) -> bool:
-        """A target two cells away whose near end shows at the frame's edge (EDGE_BEYOND_M, as
-        rendered with the camera over its cell's centre). off_centre_ne: where the camera is
-        believed from its cell's centre (north, east m); the near end is then measured from the
-        cell's centre (along the cut edge's axis; at a corner the larger of the two). The camera
-        is flown to its cell's centre, but a recentred camera, or one held off it, is not there."""
-        if not self.at_edge:
-            return False
-        near = self.inner_px / px_per_m(camera_height_m, self.width_px)
-        if off_centre_ne is not None:
-            cn, cs, cw, ce = self.cut
-            near += max(s * float(off_centre_ne[a]) for cut, a, s in ((cn, 0, 1.0), (cs, 0, -1.0), (cw, 1, -1.0),
-                                                                     (ce, 1, 1.0)) if cut)
-        return near > EDGE_BEYOND_M
+    def beyond_view(self, camera_height_m: float) -> bool:
+        """A target two cells away whose near end shows at the frame's edge (EDGE_BEYOND_M)."""
+        return self.at_edge and self.inner_px / px_per_m(camera_height_m, self.width_px) > EDGE_BEYOND_M
 
     def offset_ne(self, camera_height_m: float) -> tuple[float, float]:
         """The target's offset from the camera's nadir (north, east metres): GPS-free."""
@@ -303,16 +292,15 @@ def blob_cells(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: float,
 
 
 def blobs_to_view(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: float, cell: np.ndarray,
-                  width: int, height: int, cell_m: float = 2.0) -> np.ndarray:
+                  width: int, height: int) -> np.ndarray:
     """The (3, 3, 3) uint8 view {target, off-map, agent} around `cell` from the blobs' cells
     (each target lights exactly one slot; targets outside the 3 x 3 window, and edge blobs of
-    targets two cells away, judged from the cell's centre, are not shown)."""
+    targets two cells away, are not shown)."""
     dy, dx = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
     ys, xs = cell[1] + dy, cell[0] + dx
     inside = (ys >= 0) & (ys < height) & (xs >= 0) & (xs < width)
     view = np.zeros((3, 3, 3), dtype=np.uint8)
-    off = np.asarray(camera_ne, float) - np.array([-cell_m * cell[1], cell_m * cell[0]])  # from the cell's centre
-    near = [b for b in blobs if not b.beyond_view(camera_height_m, off)]
+    near = [b for b in blobs if not b.beyond_view(camera_height_m)]
     show_cells(view, blob_cells(near, camera_ne, camera_height_m), cell, width, height)
     view[1] = ~inside
     view[2, 1, 1] = 1
