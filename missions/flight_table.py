@@ -149,11 +149,17 @@ def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float
                  "max_moves": max_moves, "visit_map": "probabilistic", "companion_lockstep": True},
                  seeds[0] if seeds else None, summary=summary, rows=rows, wall_s=time.monotonic() - t0,
                  cpus=os.cpu_count(), command="python -m missions flight-table")
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "flight_vs_grid.json", doc)
-    with atomic_open(out / "flight_vs_grid.md", "w") as f:
-        f.write(render_md(doc))
+    write_result(out, "flight_vs_grid", doc, render_md(doc))
     return doc
+
+
+def write_result(out: Path, stem: str, doc: dict[str, Any], markdown: str) -> None:
+    """out/stem.json (the document with its provenance) and out/stem.md (what a person reads),
+    each written atomically."""
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out / f"{stem}.json", doc)
+    with atomic_open(out / f"{stem}.md", "w") as f:
+        f.write(markdown)
 
 
 def render_md(doc: dict[str, Any]) -> str:
@@ -247,10 +253,7 @@ def pool_tables(paths: list[Path], out: Path) -> dict[str, Any]:
     doc = stamp({**{k: cfg0.get(k) for k in POOL_KEYS}, "flights_git_revision": rev0,
                  "tables": [str(p) for p, *_ in docs], "seeds": [r["seed"] for r in rows]}, None,
                 summary=summarise(rows), sets=sets, rows=rows, command="python -m missions flight-pool")
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "flight_pool.json", doc)
-    with atomic_open(out / "flight_pool.md", "w") as f:
-        f.write(render_pool_md(doc))
+    write_result(out, "flight_pool", doc, render_pool_md(doc))
     return doc
 
 
@@ -315,8 +318,6 @@ def gps_noise_table(sigmas: list[float], maps: list[str], seeds: list[int], out:
                  "policy": policy or FLIGHT_POLICY, "max_moves": max_moves, "companion_lockstep": True},
                 seeds[0] if seeds else None, table=table, rows=[{k: v for k, v in r.items() if k != "cells"} for r in rows],
                 wall_s=time.monotonic() - t0, cpus=os.cpu_count(), command="python -m missions gps-table")
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "gps_noise.json", doc)
     lines = [
         "# Search flights under GPS noise",
         "",
@@ -335,6 +336,5 @@ def gps_noise_table(sigmas: list[float], maps: list[str], seeds: list[int], out:
         lines.append(f"| {t['gps_sigma_m']} | {t['visit_map']} | {_f(t['moves_mean'])} | {_f(t['grid_moves_mean'])} | "
                      f"{_f(t['ratio_mean'])}, {_f(t['ratio_max'])} | {t['found_pct']:.1f} | {t['capped']} | "
                      f"{_f(t['nees_mean'])} | {t['errors']} |")
-    with atomic_open(out / "gps_noise.md", "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_result(out, "gps_noise", doc, "\n".join(lines) + "\n")
     return doc
