@@ -120,6 +120,13 @@ class Blob:
         return any(self.cut)
 
     @property
+    def cut_axes(self) -> tuple[bool, bool]:
+        """Per axis (north, east): is the blob cut by a frame edge across it? Its centre along
+        such an axis is censored (the target runs on out of the frame)."""
+        cn, cs, cw, ce = self.cut
+        return cn or cs, cw or ce
+
+    @property
     def sd_m(self) -> float:
         """Standard deviation of the offset per axis (the calibration's rms, widened at edges)."""
         return 0.4 if self.at_edge else 0.3

@@ -157,9 +157,7 @@ class Registration:
             # edge (the target runs on out of the frame by an unknown part of its length): that
             # axis is not registered (flight seed 30: a cow 3.6 m north read at 2.8 m, the
             # north axis registered a row off, NEES 20-45 for the rest of the flight)
-            cut_n, cut_s, cut_w, cut_e = b.cut
-            cut_axis = np.array([cut_n or cut_s, cut_w or cut_e])
-            soft = tuple(int(i) for i in np.flatnonzero(~off_field & ~cut_axis))
+            soft = tuple(int(i) for i in np.flatnonzero(~off_field & ~np.array(b.cut_axes)))
             if not forced and not soft:
                 continue
             if forced:
@@ -268,8 +266,7 @@ class Registration:
             # 0.2-0.45 m off), the other kept (rendered cut cows: 0.14 m rms along it, as
             # inside the frame). Cut blobs had been left out whole: flight seed 69 then missed
             # a found cow's east offset while the bias drifted 0.6 m in 4 s
-            cn, cs, cw, ce = b.cut
-            axes = [i for i, cut in enumerate((cn or cs, cw or ce)) if not cut]
+            axes = [i for i, cut in enumerate(b.cut_axes) if not cut]
             if not axes:
                 continue
             z = (cell_to_ned(np.array(on)) - off)[axes]

@@ -85,6 +85,7 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
     ratios = np.array([r["flight_grid_ratio"] for r in ok]) if ok else np.zeros(0)
     nees = np.concatenate([r["nees"] for r in ok if r["nees"]]) if any(r["nees"] for r in ok) else np.zeros(0)
     found = sum(r["truly_found"] for r in ok)
+    over = int((ratios > GOAL_MAX_RATIO).sum())
     n_eff = max(sum(len(r["nees"]) for r in ok) * 4.0 / bias_tau_s, 1.0)
     eff = (chi2.ppf([0.025, 0.975], 2 * n_eff) / n_eff).tolist()
     strict = (chi2.ppf([0.025, 0.975], 2 * max(len(nees), 1)) / max(len(nees), 1)).tolist()
@@ -92,10 +93,10 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
         "flights": len(rows), "errors": len(rows) - len(ok), "capped": int(sum(r.get("capped", False) for r in ok)),
         "ratio_mean": float(ratios.mean()) if len(ratios) else None,
         "ratio_mean_ci95": ratio_mean_interval(ratios),
-        "over_1_5_ci95": over_interval(int((ratios > GOAL_MAX_RATIO).sum()), len(ratios)),
+        "over_1_5_ci95": over_interval(over, len(ratios)),
         "ratio_median": float(np.median(ratios)) if len(ratios) else None,
         "ratio_max": float(ratios.max()) if len(ratios) else None,
-        "over_1_5": int((ratios > GOAL_MAX_RATIO).sum()),
+        "over_1_5": over,
         "moves_mean": float(np.mean([r["moves"] for r in ok])) if ok else None,
         "grid_moves_mean": float(np.mean([r["grid_moves"] for r in ok])) if ok else None,
         "found_pct": 100.0 * found / max(sum(r["targets"] for r in ok), 1),
@@ -225,33 +226,34 @@ def pool_tables(paths: list[Path], out: Path) -> dict[str, Any]:
 
     if not paths:
         raise ValueError("no flight tables to pool")
-    docs = []
+    tables: list[tuple[Path, list[dict[str, Any]], dict[str, Any], str]] = []  # path, rows, config, revision
     for p in paths:
         try:
             doc = json.loads(Path(p).read_text())
-            rows, cfg, rev = doc["rows"], doc["config"], doc["git_revision"]
+            tables.append((Path(p), doc["rows"], doc["config"], doc["git_revision"]))
         except (OSError, ValueError, KeyError, TypeError) as e:
             raise ValueError(f"{p}: not a flight table (flight_vs_grid.json): {e}") from e
-        docs.append((Path(p), doc, rows, cfg, rev))
-    _, first, _, cfg0, rev0 = docs[0]
+    first, _, cfg0, rev0 = tables[0]
     seen: dict[int, Path] = {}
-    for p, _, rows, cfg, rev in docs:
+    for p, rows, cfg, rev in tables:
         if rev != rev0:
-            raise ValueError(f"{p}: flown at git {rev}, {docs[0][0]} at {rev0}: pool one revision's flights")
+            raise ValueError(f"{p}: flown at git {rev}, {first} at {rev0}: pool one revision's flights")
         for k in POOL_KEYS:
             if cfg.get(k) != cfg0.get(k):
-                raise ValueError(f"{p}: {k} {cfg.get(k)!r} differs from {docs[0][0]}'s {cfg0.get(k)!r}")
+                raise ValueError(f"{p}: {k} {cfg.get(k)!r} differs from {first}'s {cfg0.get(k)!r}")
         for r in rows:
             if r["seed"] in seen:
                 raise ValueError(f"{p}: seed {r['seed']} is in {seen[r['seed']]} too")
             seen[r["seed"]] = p
-    rows = sorted((r for _, _, rs, _, _ in docs for r in rs), key=lambda r: r["seed"])
-    sets = [{"table": str(p), "seeds": [min(r["seed"] for r in rs), max(r["seed"] for r in rs)],
-             **{k: summarise(rs)[k] for k in ("flights", "ratio_mean", "ratio_max", "over_1_5", "nees_mean",
-                                             "nees_interval_eff", "nees_inside_95", "found_pct")}}
-            for p, _, rs, _, _ in docs]
+    rows = sorted((r for _, rs, _, _ in tables for r in rs), key=lambda r: r["seed"])
+    sets = []
+    for p, rs, _, _ in tables:
+        s = summarise(rs)
+        sets.append({"table": str(p), "seeds": [min(r["seed"] for r in rs), max(r["seed"] for r in rs)],
+                     **{k: s[k] for k in ("flights", "ratio_mean", "ratio_max", "over_1_5", "nees_mean",
+                                          "nees_interval_eff", "nees_inside_95", "found_pct")}})
     doc = stamp({**{k: cfg0.get(k) for k in POOL_KEYS}, "flights_git_revision": rev0,
-                 "tables": [str(p) for p, *_ in docs], "seeds": [r["seed"] for r in rows]}, None,
+                 "tables": [str(p) for p, *_ in tables], "seeds": [r["seed"] for r in rows]}, None,
                 summary=summarise(rows), sets=sets, rows=rows, command="python -m missions flight-pool")
     write_result(out, "flight_pool", doc, render_pool_md(doc))
     return doc
