@@ -185,3 +185,29 @@ def test_the_launch_point_registers_the_bias_from_the_autopilots_estimate() -> N
         assert pad.estimator.n_components == 1
         post = pad.estimator.posterior()
         assert np.abs(post.mean_ned[:2] - pad.intake.home_in_field()[:2]).max() < 0.1
+
+
+def test_a_found_target_seen_cut_by_the_frame_keeps_its_reading() -> None:
+    """A found cow's remembered reading is refreshed by whole sightings only: a blob cut by the
+    frame's edge has its centre censored across the cut (up to a metre off), and refreshed by
+    such sightings, one after another, a found cow's reading walked 3 m east over a flight; the
+    cow, seen whole again 95 decisions later, was not matched and was found twice (flight seed
+    103: 5 believed, 4 truly found). A cut sighting is matched with the cut axis's wider sd."""
+    with _on_the_pad(37) as pad:
+        reg, t, cell = pad.reg, pad.t, pad.cell
+        height = pad.spec.camera_height()
+        reg.remember(t, [_blob_at((0.1, 0.2), height)], cell_to_ned(cell), cell, np.eye(2) * 0.05)
+        whole = reg.reading_at(t) + np.array([0.1, 0.2])
+        # 4 s later, seen cut by the frame's west edge with its centre read 1.4 m off across the
+        # cut: the same cow (the wider sd across the cut), but its reading is kept
+        censored = whole + np.array([0.0, 1.4])
+        assert reg.match(censored, t + 4.0) is None, "whole, 1.4 m off in 4 s is a neighbour's cow"
+        assert reg.match(censored, t + 4.0, (False, True)) == 0
+        assert reg.known(t + 4.0, censored, (False, True))
+        at, reading = reg._found_at[0]
+        assert at == t and np.allclose(reading, whole), "a cut sighting does not move the reading"
+        # seen whole again: matched and refreshed
+        again = whole + np.array([0.05, -0.1])
+        assert reg.known(t + 8.0, again)
+        at, reading = reg._found_at[0]
+        assert at == t + 8.0 and np.allclose(reading, again)
