@@ -17,7 +17,7 @@ import numpy as np
 
 from sim.gridworld import cell_to_ned, nearest_cell
 
-from .detector import Blob, blob_cells
+from .detector import FAR_REACH_M, Blob, blob_cells, px_per_m
 from .estimator import GpsEstimator
 from .link import VehicleLink
 from .search_data import SearchSpec
@@ -301,6 +301,20 @@ class Registration:
             i = None if b.beyond_view(height) else self.match(reading + np.asarray(b.offset_ne(height)), t, b.cut_axes)
             out.append(None if i is None else self._told_cells[i])
         return out
+
+    def found_far(self, t: float, blob: Blob) -> bool:
+        """Is this blob, whose near end shows at the frame's edge (`Blob.beyond_view`), a found
+        target's? Its centre lies FAR_REACH_M beyond its near end along the cut (whichever cell
+        it is in), and is matched as any cut sighting (`match`): a found cow passed as a target
+        seen beyond the view was chased again."""
+        height = self.spec.camera_height()
+        near = blob.inner_px / px_per_m(height, blob.width_px)
+        cn, cs, cw, ce = blob.cut
+        off = np.asarray(blob.offset_ne(height), dtype=float)
+        for i, (towards, away) in enumerate(((cn, cs), (ce, cw))):
+            if towards != away:
+                off[i] = (1.0 if towards else -1.0) * (near + FAR_REACH_M)
+        return self.match(self.reading_at(t) + off, t, blob.cut_axes) is not None
 
     def reading_at(self, t: float) -> np.ndarray:
         """Where the autopilot puts the vehicle at simulated time t (local north, east): its

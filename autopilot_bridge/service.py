@@ -35,6 +35,7 @@ from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 from .detector import (
     DetectorConfig,
     blobs_to_view,
+    far_likelihood,
     find_blobs,
     show_beside,
     show_cells,
@@ -168,6 +169,7 @@ class PolicyService:
             self.log.times_s.append(float(t_k))
             self.log.posterior_mean_ne.append([float(v) for v in post.mean_ned[:2]])
             self.log.posterior_cov_ne.append(post.horizontal_cov.tolist())
+            far: list[np.ndarray] = []
             if frame is None:
                 self.log.frames_missing += 1
                 view = np.zeros((3, 3, 3), np.uint8)
@@ -183,6 +185,10 @@ class PolicyService:
                 if not below:
                     show_beside(view, aside, height, cell, g.width, g.height)
                 view[0, 1, 1] |= bool(below)  # under the camera: in this cell, whatever the posterior
+                # targets whose near end shows at the frame's edge, one or two cells out: given to
+                # the policy as likelihoods over cells (those of found targets left out)
+                far = [far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
+                       for b in blobs if b.beyond_view(height) and not self.registration.found_far(t_k, b)]
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
                 self.last_frame = (move, frame, view[0].astype(int).tolist())
@@ -207,6 +213,7 @@ class PolicyService:
                 # the position posterior over cells: belief-state policies (policy/belief) fold the
                 # view in as an expectation over it, as in the grid world's GPS evaluation
                 position_prob=None if exact else self.pmap.current[None].astype(np.float32),
+                far_targets=np.stack(far)[None].astype(np.float32) if far else None,
             )
             self.pilot.expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])

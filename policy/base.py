@@ -28,6 +28,11 @@ class Observation:
     #: 1); None = the position is known exactly (positions is the truth). With it, `positions`
     #: holds the estimate's most likely cell and `maps` the map built from the estimate.
     position_prob: np.ndarray | None = None
+    #: (n, k, h, w) float32: k targets sighted beyond the 3 x 3 view (a real camera's frame edge
+    #: shows the near end of a target one or two cells out), each as its likelihood over the
+    #: field's cells (0 where it cannot stand; all-zero rows are padding); None = none. Static
+    #: targets only (policy.belief.BeliefState folds them in; other policies ignore them).
+    far_targets: np.ndarray | None = None
 
 
 def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:

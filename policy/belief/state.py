@@ -86,6 +86,9 @@ _LOG_PAIR_CAP = 6.0
 #: a static search under a GPS posterior whose unsighted targets have less than this share of
 #: the placement prior left unseen reopens the cells not visited (_reopen_if_exhausted)
 SOFT_DRY = 0.02
+#: the floor of where a target sighted beyond the view can be (BeliefState._fold_far): a cell
+#: the view showed empty may still hold it, if the camera was off that cell
+FAR_EPS = 0.005
 #: the floor of a view slot's likelihood (policy.belief.state.BeliefState._view_likelihood)
 VIEW_EPS = 0.02
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
@@ -324,6 +327,7 @@ class BeliefState:
         cfg = self.cfg
         if self.n == 1 and obs.position_prob is None and self._crisp and not cfg.moving:
             self._update_one(obs)
+            self._fold_far(obs)
             return
         t = np.asarray(obs.t, dtype=np.int64)
         views = np.asarray(obs.views)
@@ -417,6 +421,41 @@ class BeliefState:
         self.t = t.copy()
         self._reopen_if_exhausted()
         self.target = self._target(sighted_sum if not self._reopened else None)
+        self._fold_far(obs)
+
+    def _fold_far(self, obs) -> None:
+        """Static targets sighted beyond the view (obs.far_targets: per sighting, its likelihood
+        over cells): each is placed by Bayes over where targets can be (the unfound and found
+        densities), and its unfound share raises the sighted mass there, never lowers it (the
+        same target sighted again from the next cell adds nothing). Why: a real camera's frame
+        shows the near end of a target one or two cells out, and which of the two is often
+        not clear (the camera a metre off its cell, the GPS bias unobserved for minutes);
+        dropped, the target two cells away was passed by, and the one a cell away, whose cell
+        the view had marked seen, was left for a second sweep of the field (flight seeds 25,
+        103: 43 and 102 moves against 24 and 36 in the grid world)."""
+        far = getattr(obs, "far_targets", None)
+        if far is None or self.cfg.moving:
+            return
+        far = np.asarray(far, dtype=np.float32)
+        shape = (self.n, self.cfg.height, self.cfg.width)
+        if far.ndim != 4 or far.shape[0] != self.n or far.shape[2:] != shape[1:]:
+            raise ValueError(f"far_targets must be (n, k, h, w) = ({self.n}, k, {shape[1]}, {shape[2]}) "
+                             f"(got {far.shape})")
+        if not np.all(np.isfinite(far)) or (far < 0).any():
+            raise ValueError("far_targets must be finite and non-negative")
+        u, f = self.target, self.found
+        ratio = np.where(u + f > 1e-9, u / np.maximum(u + f, 1e-9), 1.0)
+        # where targets can be, floored (the view can be wrong: a cell marked seen from a camera
+        # a metre off may hold the target)
+        where = np.maximum(u + f, FAR_EPS)
+        sighted = self._sighted
+        for j in range(far.shape[1]):
+            post = far[:, j] * where
+            tot = post.sum(axis=(1, 2), keepdims=True)
+            post = np.where(tot > 1e-9, post / np.maximum(tot, 1e-9), 0.0)
+            sighted = np.maximum(sighted, (post * ratio).astype(np.float32))
+        self._sighted = self._cap(sighted, self.remaining)
+        self.target = self._target()
 
     def _reopen_if_exhausted(self) -> None:
         """Static targets believed left unsighted with no unseen cell to hold them: a view

@@ -211,3 +211,44 @@ def test_a_target_beside_the_camera_lights_the_slot_it_lies_towards_never_the_ce
         assert view[0].sum() == 0
     finally:
         r.close()
+
+
+def test_a_near_end_at_the_frame_edge_is_weighed_between_one_and_two_cells_out() -> None:
+    """A cow whose near end shows at the frame's north edge is one cell north of a camera a
+    metre and more south of its cell, or two cells north of one over its cell: the blob alone
+    cannot tell, the position posterior weighs the two (far_likelihood), and nothing is
+    placed beside the column it is in."""
+    from autopilot_bridge.detector import far_likelihood, find_blobs
+    from sim.gridworld import cell_to_ned
+    from sim.vehicle.camera import ALTITUDE_M
+
+    r = ViewRenderer(10, 10, 1, image=50, seed=3)
+    try:
+        cell = np.array([5, 5])
+        sure = np.eye(2) * 0.05
+        shown = [0, 0]
+        for heading in (0.0, 0.8, 1.6):
+            r.field.set_targets(np.array([[5.0, 3.0]]), np.array([heading]))
+            # two cells north of a camera over its cell
+            blobs = [b for b in find_blobs(r.render_view(WorldState(10, 10, np.array([[5.0, 3.0]])), cell))
+                     if b.beyond_view(ALTITUDE_M)]
+            shown[0] += len(blobs)
+            for b in blobs:
+                lik = far_likelihood(b, cell_to_ned(cell), sure, cell, ALTITUDE_M, 10, 10)
+                assert lik[3, 5] / lik.sum() > 0.95, lik
+                assert lik[:, 4].sum() + lik[:, 6].sum() < 0.05 * lik.sum()
+            # one cell north of a camera 1.3 m south of its cell (5, 4): a posterior that knows
+            # it puts the cow a cell out; one centred on the cell (sd 0.7 m) keeps both
+            off = np.array([5.0, 4.65])
+            blobs = [b for b in find_blobs(r.render_view(WorldState(10, 10, np.array([[5.0, 3.0]])), off))
+                     if b.beyond_view(ALTITUDE_M)]
+            at = np.array([5, 4])
+            shown[1] += len(blobs)
+            for b in blobs:
+                lik = far_likelihood(b, cell_to_ned(off), sure, at, ALTITUDE_M, 10, 10)
+                assert lik[3, 5] / lik.sum() > 0.95, lik
+                wide = far_likelihood(b, cell_to_ned(at), np.eye(2) * 0.49, at, ALTITUDE_M, 10, 10)
+                assert 0.05 < wide[3, 5] / (wide[3, 5] + wide[2, 5]) < 0.95, wide
+        assert min(shown) >= 2, shown
+    finally:
+        r.close()
