@@ -57,7 +57,9 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
     keep = ("policy", "moves", "grid_moves", "flight_grid_ratio", "optimal_moves", "believed_found", "truly_found",
             "targets", "schedule_slips", "late_frames", "lockstep_timeouts", "frames_missing", "nees_mean",
             "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells")
-    capped = job.max_moves is not None and r["moves"] >= job.max_moves and r["believed_found"] < r["targets"]
+    # the move cap: the job's, else the episode's t_e (the flight's default)
+    cap = job.max_moves if job.max_moves is not None else int(r["config"]["t_e"])
+    capped = r["moves"] >= cap and r["believed_found"] < r["targets"]
     return {"seed": job.seed, "gps_sigma_m": job.gps_sigma_m, "visit_map": job.visit_map, "capped": capped,
             **{k: r[k] for k in keep}}
 

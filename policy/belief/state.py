@@ -40,6 +40,12 @@ The model (why it is built this way):
   population's density treated as independent per cell: a found target that wanders back
   into view near where it was found is recognised as found, a sighting far from every found
   target's reachable area counts as new.
+- Targets sighted beyond the view (static only; obs.far_targets, the flight's: a real
+  camera's frame edge shows the near end of a target one or two cells out): each sighting is
+  a likelihood over cells, placed by Bayes over where targets can be (unfound + found,
+  floored at FAR_EPS: a cell the view showed empty from a camera a metre off may hold it),
+  and its unfound share raises the sighted mass there (max, so a target sighted again adds
+  nothing); the grid world's view never has them.
 - Static targets: the unfound mass is the sighted-not-found targets (1 in their cells) plus
   the never-sighted ones, R - n_found - sighted, spread over the cells not yet seen in
   proportion to the placement prior (exact for the random placement, where the posterior of

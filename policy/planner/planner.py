@@ -227,6 +227,25 @@ class BeliefPlanner(Policy):
             self.tour_len[sel] = k
         self.in_tour[rows] = True
 
+    def _leave_spent_tours(self, active: np.ndarray) -> None:
+        """A tour whose premise failed is left, and the search goes on: no tour cell holds a
+        sighted target any more, or targets are believed unsighted again. Never in the grid
+        world (every target sighted means every tour cell holds one until the last is found);
+        in a flight one cow read twice (a near end at the frame's edge taken for a neighbour,
+        then weighed one or two cells out) made every target seem sighted, the tour found the
+        one cow and then stepped between its cells for 275 moves (flight seed 70). Episodes
+        that have ended are left alone (their moves draw on the shared random stream)."""
+        rows = self.rows[self.in_tour & (self.tour_len > 0) & active]
+        if not len(rows):
+            return
+        b = self.belief
+        cells = self.tour[rows]
+        live = np.arange(self.cfg.n_targets)[None] < self.tour_len[rows, None]
+        cx, cy = np.clip(cells[..., 0], 0, None), np.clip(cells[..., 1], 0, None)
+        live &= b.sighted[rows[:, None], cy, cx] > 0.5
+        spent = ~live.any(axis=1) | (b.unsighted[rows] > 0.5)
+        self.in_tour[rows[spent]] = False
+
     def _tour_goal(self, rows: np.ndarray) -> np.ndarray:
         """The first tour cell still holding a sighted target (visited ones are found)."""
         b = self.belief
@@ -245,6 +264,7 @@ class BeliefPlanner(Policy):
         valid = np.asarray(obs.valid)
         goal = self._goal(pos)
         if not self.cfg.moving and obs.position_prob is None:
+            self._leave_spent_tours(np.asarray(obs.active, bool))
             ready = (self.belief.unsighted < 1e-6) & ~self.in_tour & np.asarray(obs.active, bool)
             if ready.any():
                 self._start_tours(self.rows[ready], pos[ready])

@@ -91,3 +91,21 @@ def test_the_planner_goes_for_a_target_sighted_beyond_the_view() -> None:
             pol.act(_obs(3, y, t))
         moves[far is not None] = tuple(int(v) for v in DELTAS[int(pol.act(_obs(3, 3, 3, far))[0])])
     assert moves[False] != (1, 0) and moves[True] == (1, 0), moves
+
+
+def test_a_tour_whose_target_is_not_there_is_left() -> None:
+    """A far sighting can make every target seem sighted when one is not (one cow read twice):
+    the planner's tour (every target sighted) goes to it, finds the cell empty, and the search
+    goes on instead of stepping about the empty cell (flight seed 70: 275 moves)."""
+    cfg = GridConfig(width=7, height=7, n_targets=1)
+    pol = BeliefPlanner()
+    pol.reset(cfg, 1, 0)
+    pol.act(_obs(3, 3, 0, {(5, 3): 1.0}))
+    assert pol.in_tour[0], "the one target sighted: the tour starts"
+    x, y, visited = 3, 3, set()
+    for t in range(1, 12):
+        a = int(pol.act(_obs(x, y, t))[0])
+        x, y = x + int(DELTAS[a][0]), y + int(DELTAS[a][1])
+        visited.add((x, y))
+    assert not pol.in_tour[0]
+    assert len(visited) >= 8, f"stepped about {sorted(visited)}"
