@@ -128,6 +128,13 @@ class Blob:
         return cn or cs, cw or ce
 
     @property
+    def cut_sides(self) -> tuple[int, int]:
+        """Per axis (north, east): +1 where the blob is cut by the north (east) edge alone, -1 by
+        the south (west) edge alone, else 0: the side its target runs on out of the frame."""
+        cn, cs, cw, ce = self.cut
+        return int(cn) - int(cs) if cn != cs else 0, int(ce) - int(cw) if ce != cw else 0
+
+    @property
     def sd_m(self) -> float:
         """Standard deviation of the offset per axis (the calibration's rms, widened at edges)."""
         return 0.4 if self.at_edge else 0.3
@@ -338,17 +345,15 @@ def far_likelihood(blob: Blob, camera_ne: np.ndarray, cov_ne: np.ndarray, cell: 
     to the move cap)."""
     k = px_per_m(camera_height_m, blob.width_px)
     near = blob.inner_px / k
-    cn, cs, cw, ce = blob.cut
     offset = blob.offset_ne(camera_height_m)
     centre = np.array([-cell_m * float(cell[1]), cell_m * float(cell[0])])
     rel = np.asarray(camera_ne, dtype=float) - centre
     per_axis: list[dict[int, float]] = []  # per axis (north, east): cell index -> weight
-    for i, (towards, away) in enumerate(((cn, cs), (ce, cw))):
+    for i, sign in enumerate(blob.cut_sides):
         var = float(cov_ne[i][i])
-        sign = 1 if towards else -1
         index = int(cell[1]) if i == 0 else int(cell[0])
         step = -sign if i == 0 else sign  # north is -y
-        if towards != away:  # cut on one side along this axis: one or two cells out
+        if sign:  # cut on one side along this axis: one or two cells out
             m = sign * rel[i]
             s2 = var + FAR_REACH_SD_M**2
             per_axis.append({index + step * n: math.exp(-(n * cell_m - FAR_REACH_M - near - m) ** 2 / (2 * s2))

@@ -315,11 +315,10 @@ class Registration:
         seen beyond the view was chased again."""
         height = self.spec.camera_height()
         near = blob.inner_px / px_per_m(height, blob.width_px)
-        cn, cs, cw, ce = blob.cut
         off = np.asarray(blob.offset_ne(height), dtype=float)
-        for i, (towards, away) in enumerate(((cn, cs), (ce, cw))):
-            if towards != away:
-                off[i] = (1.0 if towards else -1.0) * (near + FAR_REACH_M)
+        for i, sign in enumerate(blob.cut_sides):
+            if sign:
+                off[i] = sign * (near + FAR_REACH_M)
         return self.match(self.reading_at(t) + off, t, blob.cut_axes) is not None
 
     def reading_at(self, t: float) -> np.ndarray:
