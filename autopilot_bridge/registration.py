@@ -14,6 +14,7 @@ import logging
 import math
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from sim.gridworld import cell_to_ned, nearest_cell
 
@@ -184,15 +185,18 @@ class Registration:
                 off_centre = True
         return used, off_centre
 
-    def new_targets(self, t: float, blobs: list[Blob], cell: np.ndarray,
-                    camera_ne: np.ndarray) -> tuple[list[Blob], list[Blob]]:
+    def new_targets(self, t: float, blobs: list[Blob], cell: np.ndarray, camera_ne: np.ndarray,
+                    ids: list[int | None] | None = None) -> tuple[list[Blob], list[Blob]]:
         """The targets in this cell not found before: (those under the camera, those beside it).
 
         Under the camera: the blob's (GPS-free) offset is within FOUND_M of the nadir on both
         axes, so the vehicle is truly over it, whichever cell the posterior puts it in. Beside
         it: in the believed cell, the camera placed at camera_ne (field north, east: the view's
         placement, so a target the view shows in the centre slot is under the camera or beside
-        it, never neither), further off (not cut by the frame's edge).
+        it, never neither), further off, cut by the frame's edge or not (a cut one had been
+        left to the view's centre slot, which the policy takes for a find the companion had not
+        made: flight seed 78 passed a corner cow 1.8 m off and swept the field for it, 54 moves
+        against 24 in the grid world); or, whole in the frame, within NEAR_M of the nadir.
         Found before: the target's position in the autopilot's frame (`reading_at`: truth +
         GPS bias) matches a target found (or seen again) earlier (`match`); the two
         readings differ by the bias's drift in between (0.26 m sd over a decision, 0.8 m over
@@ -201,18 +205,20 @@ class Registration:
         84 % truly found, every flight believing 5/5)."""
         height = self.spec.camera_height()
         reading = self.reading_at(t)
+        ids = self.identify(t, blobs) if ids is None else ids
         below: list[Blob] = []
         aside: list[Blob] = []
-        for b in blobs:
+        for b, i in zip(blobs, ids, strict=True):
             if b.beyond_view(height):
                 continue
             off = np.asarray(b.offset_ne(height))
-            if self.known(t, reading + off, b.cut_axes):
+            if i is not None:
+                self._refresh(i, t, reading + off, b.cut_axes)
                 continue
+            here = blob_cells([b], camera_ne, height)[0] == (int(cell[0]), int(cell[1]))
             if np.abs(off).max() <= FOUND_M:
                 below.append(b)
-            elif not b.at_edge and (np.abs(off).max() <= NEAR_M
-                                    or blob_cells([b], camera_ne, height)[0] == (int(cell[0]), int(cell[1]))):
+            elif here or (not b.at_edge and np.abs(off).max() <= NEAR_M):
                 aside.append(b)
         aside.sort(key=lambda b: float(np.abs(b.offset_ne(height)).max()))
         return below, aside
@@ -225,51 +231,107 @@ class Registration:
         decisions later the cow, seen whole, was not matched and found again (flight seed 103:
         4 of 5 truly found, 5 believed)."""
         i = self.match(at_reading, t, cut)
-        if i is not None and not any(cut):
-            self._found_at[i] = (t, np.asarray(at_reading, dtype=float))
+        if i is not None:
+            self._refresh(i, t, at_reading, cut)
         return i is not None
+
+    def _refresh(self, i: int, t: float, at_reading: np.ndarray, cut: tuple[bool, bool]) -> None:
+        """Found target i seen again at this reading: its entry refreshed if whole in the frame
+        (see `known`)."""
+        if not any(cut):
+            self._found_at[i] = (t, np.asarray(at_reading, dtype=float))
 
     def match(self, at_reading: np.ndarray, t: float, cut: tuple[bool, bool] = (False, False)) -> int | None:
         """The found target (its index) seen at this receiver-frame position at simulated time
-        t, or None: a target found (or seen again) at t_i was read at p_i; seen again, its
-        reading differs by the GPS bias's drift since (`GpsEstimator.drift_var`) and the two
-        blobs' errors. Against it stands a new target on a neighbouring cell (the readings a
-        lattice offset apart), a priori as likely as a cell holding a target (the field's
-        targets per cell: a found target is surely there, a new one rarely). Before, the
-        offset's nearest lattice point decided alone (half a cell): at GPS sigma 2 m the bias
-        drifts 0.55 m per decision and 15 % of the cows were found twice. An axis along which
-        the blob is cut by the frame's edge (cut, per axis) is matched with its censored centre's
-        wider sd (CUT_SD_M)."""
+        t, or None (one sighting alone: `assign`). cut: per axis, is the blob cut by the frame's
+        edge across it."""
+        return self.assign(t, [np.asarray(at_reading, dtype=float)], [cut])[0]
+
+    def identify(self, t: float, blobs: list[Blob]) -> list[int | None]:
+        """Per blob of one frame: the found target (its index) it is, or None (`assign`). A blob
+        whose near end only shows at the frame's edge (`Blob.beyond_view`) is placed FAR_REACH_M
+        beyond that near end along the cut, as any cut sighting."""
+        height = self.spec.camera_height()
+        reading = self.reading_at(t)
+        at = [reading + self._match_offset(b, height) for b in blobs]
+        return self.assign(t, at, [b.cut_axes for b in blobs])
+
+    @staticmethod
+    def _match_offset(b: Blob, height: float) -> np.ndarray:
+        """The blob's target's offset from the nadir (north, east m) for matching: its centre,
+        or for a target beyond the view, FAR_REACH_M past its near end along the cut."""
+        off = np.asarray(b.offset_ne(height), dtype=float)
+        if b.beyond_view(height):
+            near = b.inner_px / px_per_m(height, b.width_px)
+            for i, sign in enumerate(b.cut_sides):
+                if sign:
+                    off[i] = sign * (near + FAR_REACH_M)
+        return off
+
+    def assign(self, t: float, at_readings: list[np.ndarray], cuts: list[tuple[bool, bool]]) -> list[int | None]:
+        """Which found target (index), if any, each of one frame's sightings is: sighting j, at
+        receiver-frame position at_readings[j] at simulated time t, is found target i (found,
+        or seen again, at t_i and read at p_i) if the two readings differ by what the GPS bias
+        drifts in between (`GpsEstimator.drift_var`) and the two blobs' errors; against it stands
+        a new target on a cell next to a found one (the readings a lattice offset apart), a
+        priori as likely as a cell holding a target (the field's targets per cell). An axis
+        along which a blob is cut by the frame's edge (cuts[j]) has its censored centre's wider
+        sd (CUT_SD_M). Before, the offset's nearest lattice point decided alone (half a cell):
+        at GPS sigma 2 m the bias drifts 0.55 m per decision and 15 % of the cows were found
+        twice.
+
+        Jointly, one to one (the likeliest assignment, `linear_sum_assignment`): two blobs of
+        one frame are two targets. Matched one by one, two cows on neighbouring cells, seen
+        together 150 s after they were found (the bias drifted 1.3 m meanwhile), were both
+        taken for the nearer one's: that cow then registered the frame a cell off and was
+        found again (flight seed 78: NEES 18-100 for the flight's last moves)."""
+        m, k = len(at_readings), len(self._found_at)
+        if m == 0 or k == 0:
+            return [None] * m
         g = self.spec.grid
         p_new = min(g.n_targets / (g.width * g.height), 0.5)
         log_prior = math.log(p_new / (1.0 - p_new))
-        best, best_score = None, -math.inf
+        same = np.empty((m, k))
+        new = np.full(m, -np.inf)
         for i, (t_i, p) in enumerate(self._found_at):
-            v = self.estimator.drift_var(t - t_i) + 2.0 * MATCH_SD_M**2 + np.where(cut, CUT_SD_M**2, 0.0)
-            d = np.asarray(at_reading) - p
-            same = -0.5 * float(np.sum(d * d / v))
-            other = -0.5 * float(np.sum((d - _NEIGHBOURS) ** 2 / v, axis=1).min()) + log_prior
-            if same > other and same > best_score:
-                best, best_score = i, same
-        return best
+            base = self.estimator.drift_var(t - t_i) + 2.0 * MATCH_SD_M**2
+            for j, (at, cut) in enumerate(zip(at_readings, cuts, strict=True)):
+                v = base + np.where(cut, CUT_SD_M**2, 0.0)
+                d = np.asarray(at) - p
+                norm = -0.5 * float(np.sum(np.log(v)))
+                same[j, i] = norm - 0.5 * float(np.sum(d * d / v))
+                other = norm - 0.5 * float(np.sum((d - _NEIGHBOURS) ** 2 / v, axis=1).min()) + log_prior
+                new[j] = max(new[j], other)
+        # each sighting: one of the found targets, or new (a column of its own)
+        score = np.full((m, k + m), -1e9)
+        score[:, :k] = same
+        score[np.arange(m), k + np.arange(m)] = new
+        rows, cols = linear_sum_assignment(-score)
+        out: list[int | None] = [None] * m
+        for j, c in zip(rows, cols, strict=True):
+            out[int(j)] = int(c) if c < k else None
+        return out
 
-    def register_known(self, t: float, blobs: list[Blob]) -> tuple[int, list[Blob]]:
+    def register_known(self, t: float, blobs: list[Blob],
+                       ids: list[int | None] | None = None) -> tuple[int, list[Blob]]:
         """A static target found before stands on a known cell, and which one the receiver
         frame says (its reading matches, `match`), whatever the position posterior: a sighting
         of it measures where the camera truly is with no lattice ambiguity. Without this the
         GPS bias went unobserved while the vehicle worked around found targets with a posterior
         too wide to register new sightings (flight seed 18: the camera drifted 1-1.5 m off its
         cells for 30 moves, and the view put a found cow a cell off). A blob cut by the frame's
-        edge registers the axis along the cut only. Returns how many were fused and the blobs left for
+        edge registers the axis along the cut only. ids: the frame's blobs identified (`identify`;
+        worked out here if None). Returns how many were fused and the blobs left for
         `register_targets`: those not found before, and found ones whose cell was not sure."""
         if not self.spec.register or self.spec.grid.moving or not self._found_cells:
             return 0, blobs
         height = self.spec.camera_height()
-        reading = self.reading_at(t)
+        ids = self.identify(t, blobs) if ids is None else ids
         used, rest = 0, []
-        for b in blobs:
+        for b, i in zip(blobs, ids, strict=True):
             off = np.asarray(b.offset_ne(height))
-            i = None if b.beyond_view(height) else self.match(reading + off, t, b.cut_axes)
+            if b.beyond_view(height):
+                i = None
             if i is None:
                 rest.append(b)
                 continue
@@ -294,32 +356,17 @@ class Registration:
             used += 1
         return used, rest
 
-    def told_cells(self, t: float, blobs: list[Blob]) -> list[tuple[int, int] | None]:
+    def told_cells(self, t: float, blobs: list[Blob],
+                   ids: list[int | None] | None = None) -> list[tuple[int, int] | None]:
         """Per blob: the cell the policy was told it is in where it is a target found before
         (matched by the autopilot's reading, `match`), else None. The view shows a found target
         there, wherever the camera estimate now puts it: the policy's world shows found targets
         where they were found, and one shown a cell away was a target it had not found, which
         it chased back and forth (flight seed 9: 54 moves against 22 in the grid world)."""
         height = self.spec.camera_height()
-        reading = self.reading_at(t)
-        out: list[tuple[int, int] | None] = []
-        for b in blobs:
-            i = None if b.beyond_view(height) else self.match(reading + np.asarray(b.offset_ne(height)), t, b.cut_axes)
-            out.append(None if i is None else self._told_cells[i])
-        return out
-
-    def found_far(self, t: float, blob: Blob) -> bool:
-        """Is this blob, whose near end shows at the frame's edge (`Blob.beyond_view`), a found
-        target's? Its centre lies FAR_REACH_M beyond its near end along the cut (whichever cell
-        it is in), and is matched as any cut sighting (`match`): a found cow passed as a target
-        seen beyond the view was chased again."""
-        height = self.spec.camera_height()
-        near = blob.inner_px / px_per_m(height, blob.width_px)
-        off = np.asarray(blob.offset_ne(height), dtype=float)
-        for i, sign in enumerate(blob.cut_sides):
-            if sign:
-                off[i] = sign * (near + FAR_REACH_M)
-        return self.match(self.reading_at(t) + off, t, blob.cut_axes) is not None
+        ids = self.identify(t, blobs) if ids is None else ids
+        return [None if i is None or b.beyond_view(height) else self._told_cells[i]
+                for b, i in zip(blobs, ids, strict=True)]
 
     def reading_at(self, t: float) -> np.ndarray:
         """Where the autopilot puts the vehicle at simulated time t (local north, east): its

@@ -134,11 +134,13 @@ class PolicyService:
                 if self.spec.register and self.spec.map_from_reading:
                     self.intake.fuse_reading(t_k, READING_SD_M)
                 blobs = find_blobs(frame, self.det) if frame is not None else []
-                known, rest = self.registration.register_known(t_k, blobs)
+                # which blobs are targets found before: once, jointly (`Registration.identify`)
+                ids = self.registration.identify(t_k, blobs)
+                known, rest = self.registration.register_known(t_k, blobs, ids)
                 registered, _ = self.registration.register_targets(t_k, rest, cell)
                 registered += known
                 where = self._camera_ne(t_k, self.estimator.posterior(t_k).mean_ned[:2])
-                below, aside = self.registration.new_targets(t_k, blobs, cell, where)
+                below, aside = self.registration.new_targets(t_k, blobs, cell, where, ids)
                 if below or not aside or attempt == RECENTRE or self.pmap.met[cell[1], cell[0]] > 0.5:
                     break
                 # a target not found before in this cell but not under the camera: centre on it
@@ -178,7 +180,7 @@ class PolicyService:
                 self.log.frames += 1
                 # each target lights the one cell its centre is in, the camera taken where the
                 # posterior says (GPS-free offsets; a target straddling windows is one target)
-                told = self.registration.told_cells(t_k, blobs)
+                told = self.registration.told_cells(t_k, blobs, ids)
                 fresh = [b for b, c in zip(blobs, told, strict=True) if c is None and b not in below and b not in aside]
                 view = blobs_to_view(fresh, where, height, cell, g.width, g.height)
                 show_cells(view, [c for c in told if c is not None], cell, g.width, g.height)
@@ -188,7 +190,7 @@ class PolicyService:
                 # targets whose near end shows at the frame's edge, one or two cells out: given to
                 # the policy as likelihoods over cells (those of found targets left out)
                 far = [far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
-                       for b in blobs if b.beyond_view(height) and not self.registration.found_far(t_k, b)]
+                       for b, i in zip(blobs, ids, strict=True) if b.beyond_view(height) and i is None]
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
                 self.last_frame = (move, frame, view[0].astype(int).tolist())

@@ -214,3 +214,48 @@ def test_a_found_target_seen_cut_by_the_frame_keeps_its_reading() -> None:
         assert reg.known(t + 8.0, again)
         at, reading = reg._found_at[0]
         assert at == t + 8.0 and np.allclose(reading, again)
+
+
+def test_two_blobs_of_one_frame_are_two_found_targets() -> None:
+    """Two cows on neighbouring cells, seen together long after they were found (the GPS bias
+    drifted 1.3 m east meanwhile): one by one, both blobs are nearest the east cow's reading and
+    both were taken for it, which then registered the frame a cell off (flight seed 78: NEES
+    18-100). Identified jointly, one to one, each is its own cow, and a frame with a third,
+    new cow beside them leaves that one new."""
+    with _on_the_pad(38) as pad:
+        reg, t, cell = pad.reg, pad.t, pad.cell
+        height = pad.spec.camera_height()
+        camera = cell_to_ned(cell)
+        reg.remember(t, [_blob_at((0.1, 0.0), height), _blob_at((0.1, 2.0), height)], camera, cell, np.eye(2) * 0.05)
+        (_, west), (_, east) = reg._found_at
+        later, drift = t + 150.0, np.array([0.0, 1.3])
+        seen = [west + drift, east + drift]
+        assert reg.match(seen[0], later) == 1 and reg.match(seen[1], later) == 1, "one by one: both the east cow"
+        assert reg.assign(later, seen, [(False, False)] * 2) == [0, 1]
+        # a third cow two cells further east, in the same frame: not found before
+        third = east + np.array([0.0, 4.0]) + drift
+        assert reg.assign(later, [*seen, third], [(False, False)] * 3) == [0, 1, None]
+        # one sighting alone is assigned as `match` says
+        assert reg.assign(later, [seen[0]], [(False, False)]) == [reg.match(seen[0], later)]
+        assert reg.assign(later, [], []) == []
+
+
+def test_a_cut_blob_in_the_believed_cell_is_beside_the_camera() -> None:
+    """A new cow cut by the frame's east edge whose centre the camera estimate puts in the
+    believed cell is beside the camera (re-centred on, shown in the slot it lies towards), never
+    left to the view's centre slot, which the policy takes for a find the companion has not
+    made (flight seed 78: a corner cow passed 1.8 m off, then swept the field for, 54 moves
+    against 24 in the grid world)."""
+    with _on_the_pad(39) as pad:
+        reg, t, cell = pad.reg, pad.t, pad.cell
+        height = pad.spec.camera_height()
+        k = px_per_m(height)
+        cut = Blob(row=-0.1 * k, col=1.6 * k, pixels=90, cut=(False, False, False, True), inner_px=1.0 * k)
+        assert cut.at_edge and not cut.beyond_view(height)
+        off = np.asarray(cut.offset_ne(height))
+        camera = cell_to_ned(cell) - 0.7 * off  # the camera estimate puts the cow 0.3 * off from the centre
+        below, aside = reg.new_targets(t, [cut], cell, camera)
+        assert below == [] and aside == [cut]
+        # the same cow, the camera estimate a cell west: in the next cell, not beside
+        below, aside = reg.new_targets(t, [cut], cell, camera - np.array([0.0, 2.0]))
+        assert below == [] and aside == []
