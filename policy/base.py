@@ -33,6 +33,10 @@ class Observation:
     #: field's cells (0 where it cannot stand; all-zero rows are padding); None = none. Static
     #: targets only (policy.belief.BeliefState folds them in; other policies ignore them).
     far_targets: np.ndarray | None = None
+    #: (n,) targets found by the last move where the agent knows it exactly (the flight's
+    #: companion counts a find when a target not found before is under the camera); None = the
+    #: belief infers it from the view and the map (policy.belief.BeliefState._find_events)
+    found_now: np.ndarray | None = None
 
 
 def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:

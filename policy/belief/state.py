@@ -365,7 +365,13 @@ class BeliefState:
             cells, det_u_c, det_f_c, newly = self._view_exact(obs.positions, tgt_slots, u)
         else:
             self._crisp = False
-            keep, det_u, det_f, newly = self._view_spread(p, tgt_slots, u)
+            # the flight's companion (obs.found_now) shows a target in the centre slot where it
+            # stands on the cell the agent was told (found now, or found there before): its
+            # found mass goes there, not spread over the position posterior (spread, a cow found
+            # with the posterior leaning a row south stood there as a phantom found cow, and the
+            # view's evidence then kept the agent believed a row off: flight seed 25)
+            told = np.asarray(obs.positions, dtype=np.int64) if getattr(obs, "found_now", None) is not None else None
+            keep, det_u, det_f, newly = self._view_spread(p, tgt_slots, u, told)
         events = self._find_events(obs)
         if events is not None:
             newly = events
@@ -549,10 +555,12 @@ class BeliefState:
         det_f[cells] = det_f_c
         return keep, det_u, det_f
 
-    def _view_spread(self, p: np.ndarray, tgt_slots: np.ndarray,
-                     u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _view_spread(self, p: np.ndarray, tgt_slots: np.ndarray, u: np.ndarray,
+                     told: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """What the view showed, for a position distribution p: (keep = 1 - P(in view), unfound
-        targets shown outside the agent's cell, found targets shown, expected new finds)."""
+        targets shown outside the agent's cell, found targets shown, expected new finds). told:
+        (n, 2) cells (x, y) the centre slot's targets stand on, where the observer says so (the
+        flight's); else the centre slot is spread over p like the others."""
         f = self.found
         tot = u + f
         ratio_u = np.where(tot > 1e-9, u / np.maximum(tot, 1e-9), 1.0)
@@ -564,8 +572,11 @@ class BeliefState:
             inview += ps
             shown = ps * tgt_slots[:, dy + 1, dx + 1, None, None]
             if dy == 0 and dx == 0:
-                det_f += shown
                 newly = (shown * ratio_u).sum(axis=(1, 2), dtype=np.float64)
+                if told is not None:
+                    shown = np.zeros_like(p)
+                    shown[self.rows, told[:, 1], told[:, 0]] = tgt_slots[:, 1, 1]
+                det_f += shown
             else:
                 det_u += shown * ratio_u
                 det_f += shown * (1.0 - ratio_u)
@@ -623,7 +634,17 @@ class BeliefState:
         """(n,) targets found by the last move, where the map M says it: the spatiotemporal
         map's recoveries channel is written (trail_value) at the agent's cell in the step of a
         find. None where the map does not tell (spatial and memory maps) or the position is
-        uncertain; then the belief's own expectation is used."""
+        uncertain; then the belief's own expectation is used. obs.found_now, where given, says
+        it outright (the flight's companion knows each find: under an uncertain position the
+        expectation had counted a cow seen from the next cell as a part-find, 2.67 believed of
+        2 found, and the planner went back and forth between the two cows for 12 moves, flight
+        seed 25)."""
+        now = getattr(obs, "found_now", None)
+        if now is not None:
+            now = np.asarray(now, dtype=np.float64).reshape(-1)
+            if now.shape != (self.n,) or not np.all(np.isfinite(now)) or (now < 0).any():
+                raise ValueError(f"found_now must be ({self.n},) finite counts >= 0 (got {now!r})")
+            return now
         maps = np.asarray(obs.maps) if obs.maps is not None else None
         cfg = self.cfg
         if (cfg.map_variant != "spatiotemporal" or obs.position_prob is not None or maps is None

@@ -60,6 +60,10 @@ class PlannerParams:
     #: (the blurred pair correlation, as a log-factor on where to look); 0.5 took herd from
     #: 39.7 to 37.5 moves on the tuning seeds
     herd: float = 0.5
+    #: under an uncertain position (obs.position_prob), plan from the belief's likeliest cell
+    #: (the posterior after the view's evidence) where it is at least this likely and not the
+    #: cell the agent was told (obs.positions); 1 or more: always from the told cell
+    plan_from_belief: float = 0.5
 
     def __post_init__(self) -> None:
         for k in ("pickup", "outer", "travel_offset", "edge", "herd"):
@@ -257,10 +261,27 @@ class BeliefPlanner(Policy):
         first = np.where(live.any(axis=1), live.argmax(axis=1), 0)
         return cells[np.arange(len(rows)), first]
 
+    def _where(self, told: np.ndarray) -> np.ndarray:
+        """The cells to plan from under an uncertain position: the belief's likeliest (its
+        position posterior after the view's evidence, `BeliefState._position`) where it is at
+        least plan_from_belief likely, else the cell the agent was told. Why: the view says where
+        the agent is when it shows known targets (the belief weighs positions by it), and the
+        told cell can be a row off for minutes (GPS bias, the frame registered on the wrong
+        lattice point): planned from the told cell, a cow in view a cell north was taken to be
+        under the agent, which "standing still recovers nothing" sent back and forth between
+        two cells beside it for 8 moves (flight seed 58)."""
+        q = self.belief.position.reshape(self.n, -1)
+        best = q.argmax(axis=1)
+        sure = q[self.rows, best] >= self.params.plan_from_belief
+        w = self.cfg.width
+        return np.where(sure[:, None], np.stack([best % w, best // w], axis=1), told).astype(np.int64)
+
     # ------------------------------------------------------------------------ act
     def act(self, obs: Observation) -> np.ndarray:
         self.belief.update(obs)
         pos = np.asarray(obs.positions, dtype=np.int64)
+        if obs.position_prob is not None:
+            pos = self._where(pos)
         valid = np.asarray(obs.valid)
         goal = self._goal(pos)
         if not self.cfg.moving and obs.position_prob is None:
