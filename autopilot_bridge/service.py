@@ -16,9 +16,9 @@ point of the same clock.
 
 This module is the decision loop; the service owns one part per concern, each in its own
 module: `telemetry` (GPS fixes and the autopilot's estimate off the link, read by their
-stamps), `registration` (the launch point and targets as GPS-free position measurements, the
-memory of targets found), `pilot` (take-off, the setpoint stream and its deadline, landing)
-and `search_data` (the spec, log and progress it exchanges with the operator; re-exported
+stamps), `registration` (the launch point and targets as GPS-free position measurements),
+`found` (the memory of the targets found, and which blobs of a frame they are), `pilot`
+(take-off, the setpoint stream and its deadline, landing) and `search_data` (the spec, log and progress it exchanges with the operator; re-exported
 here, so `from autopilot_bridge.service import SearchSpec` keeps working).
 """
 
@@ -42,6 +42,7 @@ from .detector import (
     valid_moves,
 )
 from .estimator import GpsEstimator
+from .found import FoundTargets
 from .images import FrameRequester
 from .link import LinkError, VehicleLink
 from .pilot import DECISION_DEADLINE_S, FRAME_DEADLINE_S, Pilot
@@ -53,14 +54,14 @@ from .telemetry import READING_SD_M, TelemetryIntake
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 
 KEEP_FRAMES = 7
-#: a target in the believed cell but off the nadir by more than registration.FOUND_M is
+#: a target in the believed cell but off the nadir by more than found.FOUND_M is
 #: re-centred on first, at most RECENTRE times a move
 RECENTRE = 2
 
 
 class PolicyService:
     """The companion's search: owns the estimator, the visitation map, the frame requester and
-    the three parts (telemetry intake, registration, pilot), and runs the decision loop."""
+    the four parts (telemetry intake, found targets, registration, pilot), and runs the decision loop."""
 
     def __init__(self, link: VehicleLink, policy: Policy, spec: SearchSpec, seed: int = 0,
                  detector: DetectorConfig | None = None, clock: Callable[[], float] = time.monotonic,
@@ -80,7 +81,8 @@ class PolicyService:
         self.log = SearchLog()
         self.clock = clock
         self.intake = TelemetryIntake(link, spec.origin, self.estimator, spec.arrive_m)
-        self.registration = Registration(link, spec, self.estimator, self.intake)
+        self.found = FoundTargets(spec, self.estimator, self.intake)
+        self.registration = Registration(link, spec, self.estimator, self.intake, self.found)
         self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log, self.frames)
 
     # -- the mission ---------------------------------------------------------------------
@@ -140,13 +142,13 @@ class PolicyService:
                 if self.spec.register and self.spec.map_from_reading:
                     self.intake.fuse_reading(t_k, READING_SD_M)
                 blobs = find_blobs(frame, self.det) if frame is not None else []
-                # which blobs are targets found before: once, jointly (`Registration.identify`)
-                ids = self.registration.identify(t_k, blobs)
+                # which blobs are targets found before: once, jointly (`FoundTargets.identify`)
+                ids = self.found.identify(t_k, blobs)
                 known, rest = self.registration.register_known(t_k, blobs, ids)
                 registered, _ = self.registration.register_targets(t_k, rest, cell)
                 registered += known
                 where = self._camera_ne(t_k, self.estimator.posterior(t_k).mean_ned[:2])
-                below, aside = self.registration.new_targets(t_k, blobs, cell, where, ids)
+                below, aside = self.found.new_targets(t_k, blobs, cell, where, ids)
                 if below or not aside or attempt == RECENTRE or self.pmap.met[cell[1], cell[0]] > 0.5:
                     break
                 # a target not found before in this cell but not under the camera: centre on it
@@ -186,7 +188,7 @@ class PolicyService:
                 self.log.frames += 1
                 # each target lights the one cell its centre is in, the camera taken where the
                 # posterior says (GPS-free offsets; a target straddling windows is one target)
-                told = self.registration.told_cells(t_k, blobs, ids)
+                told = self.found.told_cells(t_k, blobs, ids)
                 fresh = [b for b, c in zip(blobs, told, strict=True) if c is None and b not in below and b not in aside]
                 view = blobs_to_view(fresh, where, height, cell, g.width, g.height)
                 show_cells(view, [c for c in told if c is not None], cell, g.width, g.height)
@@ -207,7 +209,7 @@ class PolicyService:
                 found_now = 1
                 # a target under the camera (GPS-free) that is not one found before: found, here
                 found += 1
-                self.registration.remember(t_k, below, where, cell, post.horizontal_cov)
+                self.found.remember(t_k, below, where, cell, post.horizontal_cov)
                 self.pmap.mark_target()
                 self.log.believed_found.append(move)
                 view[0, 1, 1] = 1

@@ -4,90 +4,34 @@ it is seen again, and its known cell measures where the camera truly is."""
 
 from __future__ import annotations
 
-import socket
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
-
 import numpy as np
+from bridge_pad import blob_at, on_the_pad
 
 from autopilot_bridge.detector import Blob, px_per_m
-from autopilot_bridge.estimator import GpsEstimator
-from autopilot_bridge.link import VehicleLink
-from autopilot_bridge.registration import KNOWN_SD_M, RECORD_P, Registration, lattice_p
-from autopilot_bridge.search_data import SearchSpec
-from autopilot_bridge.telemetry import TelemetryIntake
-from sim.gridworld import GridConfig, cell_to_ned
-from sim.mavlink import Sitl, SitlConfig
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _blob_at(offset_ne: tuple[float, float], height: float) -> Blob:
-    """A whole (uncut) blob whose target lies offset_ne (north, east m) from the nadir."""
-    k = px_per_m(height)
-    return Blob(row=-offset_ne[0] * k, col=offset_ne[1] * k, pixels=200, cut=(False, False, False, False))
-
-
-@dataclass
-class Pad:
-    """A real vehicle standing on its spawn cell, the companion's parts on its link, fixes fused
-    up to t."""
-
-    sitl: Sitl
-    link: VehicleLink
-    spec: SearchSpec
-    estimator: GpsEstimator
-    intake: TelemetryIntake
-    reg: Registration
-    t: float
-    cell: np.ndarray
-
-
-@contextmanager
-def _on_the_pad(instance: int) -> Iterator[Pad]:
-    grid = GridConfig()
-    sitl = Sitl(SitlConfig(instance=instance, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
-                           api_local_port=_free_port(), api_remote_port=_free_port(), grid=grid)).start()
-    link = VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}")
-    spec = SearchSpec(origin=sitl.field_origin, grid=grid)
-    estimator = GpsEstimator()
-    intake = TelemetryIntake(link, spec.origin, estimator, spec.arrive_m)
-    try:
-        link.wait_heartbeat()
-        link.wait_for(lambda: len(intake.local_history) > 5 and intake.has_fixes(), 20, "telemetry")
-        t = intake.local_history[-1][0]
-        intake.fuse_until(t)
-        cell = np.array([int(v) for v in sitl.episode.agent[0]])  # the vehicle stands on its spawn cell
-        yield Pad(sitl, link, spec, estimator, intake, Registration(link, spec, estimator, intake), t, cell)
-    finally:
-        link.close()
-        sitl.stop()
+from autopilot_bridge.found import RECORD_P, lattice_p
+from autopilot_bridge.registration import KNOWN_SD_M, Registration
+from sim.gridworld import cell_to_ned
 
 
 def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
-    with _on_the_pad(31) as pad:
+    with on_the_pad(31) as pad:
         link, spec, estimator, intake, reg, t, cell = pad.link, pad.spec, pad.estimator, pad.intake, pad.reg, pad.t, pad.cell
         height = spec.camera_height()
         camera = cell_to_ned(cell)
         # found under the camera, 0.3 m north-east of the nadir, with the camera estimate agreeing
         # with the commanded cell and the camera well known: its cell is kept
-        found = _blob_at((0.3, 0.2), height)
-        reg.remember(t, [found], camera, cell, np.eye(2) * 0.1)
-        seen = reg.reading_at(t) + np.array([0.3, 0.2])
-        assert reg.match(seen, t) == 0
+        found = blob_at((0.3, 0.2), height)
+        reg.found.remember(t, [found], camera, cell, np.eye(2) * 0.1)
+        seen = reg.found.reading_at(t) + np.array([0.3, 0.2])
+        assert reg.found.match(seen, t) == 0
         # read 1.4 m off: at once, a new cow on the next cell (the readings cannot drift apart
         # so far); two minutes later, the found one (the GPS bias drifts ~1 m in that time)
-        assert reg.match(seen + np.array([1.4, 0.0]), t) is None
-        assert reg.match(seen + np.array([1.4, 0.0]), t + 120.0) == 0
-        assert reg.match(seen + np.array([2.0, -2.0]), t + 4.0) is None
+        assert reg.found.match(seen + np.array([1.4, 0.0]), t) is None
+        assert reg.found.match(seen + np.array([1.4, 0.0]), t + 120.0) == 0
+        assert reg.found.match(seen + np.array([2.0, -2.0]), t + 4.0) is None
         # the same cow again: where the camera truly is follows from its cell, whatever the GPS
         before = estimator.posterior(t)
-        used, rest = reg.register_known(t, [found, _blob_at((2.5, -2.4), height)])
+        used, rest = reg.register_known(t, [found, blob_at((2.5, -2.4), height)])
         assert used == 1 and len(rest) == 1, "the found cow registers; the other blob is left for the lattice"
         after = estimator.posterior(t)
         z = cell_to_ned(cell) - np.array([0.3, 0.2])
@@ -101,13 +45,13 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
         # so a re-sighting of it is no known cell's measurement (a cell recorded wrong locks
         # frames a cell off); it is left to the lattice odds, as any target
         reg2 = Registration(link, spec, estimator, intake)
-        reg2.remember(t, [found], camera + np.array([0.0, 1.5]), cell, np.eye(2) * 0.1)
+        reg2.found.remember(t, [found], camera + np.array([0.0, 1.5]), cell, np.eye(2) * 0.1)
         used2, rest2 = reg2.register_known(t, [found])
         assert used2 == 0 and rest2 == [found]
         # found in the commanded cell but 0.8 m off its centre on both axes with the camera
         # known to 0.67 m: the neighbours are too likely (held-out seeds 30, 34), no cell kept
         reg3 = Registration(link, spec, estimator, intake)
-        reg3.remember(t, [found], camera + np.array([0.5, 0.6]), cell, np.eye(2) * 0.45)
+        reg3.found.remember(t, [found], camera + np.array([0.5, 0.6]), cell, np.eye(2) * 0.45)
         assert lattice_p(np.array([0.8, 0.8]), np.full(2, 0.45 + found.sd_m**2)).max() < RECORD_P
         # near the believed cell's centre but the camera known to 0.84 m only: either neighbour
         # is likely (flight seed 6 recorded such a cow a row off: the far neighbour counts too)
@@ -119,7 +63,7 @@ def test_a_found_target_seen_again_registers_the_camera_on_its_cell() -> None:
 def test_a_blob_cut_by_the_frame_registers_only_across_the_cut() -> None:
     """A target cut by the frame's south edge runs on out of the frame by an unknown part of
     its length: its centre says where the camera is east-west (registered), not north-south."""
-    with _on_the_pad(32) as pad:
+    with on_the_pad(32) as pad:
         estimator, reg, t, cell = pad.estimator, pad.reg, pad.t, pad.cell
         height = pad.spec.camera_height()
         # the camera known to be over its cell's centre, so the lattice odds are high
@@ -127,7 +71,7 @@ def test_a_blob_cut_by_the_frame_registers_only_across_the_cut() -> None:
             estimator.observe_position(t, cell_to_ned(cell), 0.1)
         k = px_per_m(height)
         cut = Blob(row=2.0 * k, col=0.1 * k, pixels=120, cut=(False, True, False, False))
-        whole = _blob_at((-1.9, 0.1), height)
+        whole = blob_at((-1.9, 0.1), height)
         for blob, moved in ((cut, (False, True)), (whole, (True, True))):
             before = np.diag(estimator.posterior(t).horizontal_cov).copy()
             used, _ = reg.register_targets(t, [blob], cell)
@@ -141,7 +85,7 @@ def test_a_found_target_cut_by_the_frame_registers_the_axis_along_the_cut() -> N
     west (its centre along the cut is as good as inside the frame: 0.14 m rms rendered), not
     north-south. Left out whole, a found cow's east offset went unused while the GPS bias
     drifted 0.6 m in 4 s (flight seed 69: 88 moves against 19 in the grid world)."""
-    with _on_the_pad(35) as pad:
+    with on_the_pad(35) as pad:
         estimator, reg, t, cell = pad.estimator, pad.reg, pad.t, pad.cell
         height = pad.spec.camera_height()
         camera = cell_to_ned(cell)
@@ -150,9 +94,9 @@ def test_a_found_target_cut_by_the_frame_registers_the_axis_along_the_cut() -> N
         # was found from here before (its cell kept: the camera known then)
         cut = Blob(row=2.1 * k, col=0.2 * k, pixels=90, cut=(False, True, False, False))
         south = cell + np.array([0, 1])
-        reg.remember(t, [_blob_at(cut.offset_ne(height), height)], camera + np.array([0.45, -0.2]), south,
+        reg.found.remember(t, [blob_at(cut.offset_ne(height), height)], camera + np.array([0.45, -0.2]), south,
                      np.eye(2) * 0.05)
-        assert reg.match(reg.reading_at(t) + np.array(cut.offset_ne(height)), t) == 0
+        assert reg.found.match(reg.found.reading_at(t) + np.array(cut.offset_ne(height)), t) == 0
         before = np.diag(estimator.posterior(t).horizontal_cov).copy()
         used, rest = reg.register_known(t, [cut])
         after = np.diag(estimator.posterior(t).horizontal_cov)
@@ -166,7 +110,7 @@ def test_a_fix_stamped_before_a_fused_position_measurement_is_left_out() -> None
     just before it that was left for the next decision (half a fix period) cannot be fused
     after it: it is counted, not a crash (a lossy link's flight once ended on 'measurement time
     went backwards')."""
-    with _on_the_pad(33) as pad:
+    with on_the_pad(33) as pad:
         ahead = pad.t + 0.5
         pad.estimator.observe_position(ahead, cell_to_ned(pad.cell), 0.1)
         pad.link.wait_for(lambda: pad.intake.last_gps_t > ahead + 0.3, 10, "fixes after the measurement")
@@ -180,7 +124,7 @@ def test_the_launch_point_registers_the_bias_from_the_autopilots_estimate() -> N
     the autopilot's own estimate (truth + bias, its white noise smoothed away) register the
     receiver's bias; 2 s of fixes alone average it to 0.19 m sd (flight seed 43: 0.5 m off on
     both axes). Checked against the simulated receiver's true bias."""
-    with _on_the_pad(36) as pad:
+    with on_the_pad(36) as pad:
         pad.reg.register_launch()
         assert pad.reg.launch_registered
         truth = pad.sitl.gps.bias[:2].copy()
@@ -188,74 +132,3 @@ def test_the_launch_point_registers_the_bias_from_the_autopilots_estimate() -> N
         assert pad.estimator.n_components == 1
         post = pad.estimator.posterior()
         assert np.abs(post.mean_ned[:2] - pad.intake.home_in_field()[:2]).max() < 0.1
-
-
-def test_a_found_target_seen_cut_by_the_frame_keeps_its_reading() -> None:
-    """A found cow's remembered reading is refreshed by whole sightings only: a blob cut by the
-    frame's edge has its centre censored across the cut (up to a metre off), and refreshed by
-    such sightings, one after another, a found cow's reading walked 3 m east over a flight; the
-    cow, seen whole again 95 decisions later, was not matched and was found twice (flight seed
-    103: 5 believed, 4 truly found). A cut sighting is matched with the cut axis's wider sd."""
-    with _on_the_pad(37) as pad:
-        reg, t, cell = pad.reg, pad.t, pad.cell
-        height = pad.spec.camera_height()
-        reg.remember(t, [_blob_at((0.1, 0.2), height)], cell_to_ned(cell), cell, np.eye(2) * 0.05)
-        whole = reg.reading_at(t) + np.array([0.1, 0.2])
-        # 4 s later, seen cut by the frame's west edge with its centre read 1.4 m off across the
-        # cut: the same cow (the wider sd across the cut), but its reading is kept
-        censored = whole + np.array([0.0, 1.4])
-        assert reg.match(censored, t + 4.0) is None, "whole, 1.4 m off in 4 s is a neighbour's cow"
-        assert reg.match(censored, t + 4.0, (False, True)) == 0
-        assert reg.known(t + 4.0, censored, (False, True))
-        at, reading = reg._found_at[0]
-        assert at == t and np.allclose(reading, whole), "a cut sighting does not move the reading"
-        # seen whole again: matched and refreshed
-        again = whole + np.array([0.05, -0.1])
-        assert reg.known(t + 8.0, again)
-        at, reading = reg._found_at[0]
-        assert at == t + 8.0 and np.allclose(reading, again)
-
-
-def test_two_blobs_of_one_frame_are_two_found_targets() -> None:
-    """Two cows on neighbouring cells, seen together long after they were found (the GPS bias
-    drifted 1.3 m east meanwhile): one by one, both blobs are nearest the east cow's reading and
-    both were taken for it, which then registered the frame a cell off (flight seed 78: NEES
-    18-100). Identified jointly, one to one, each is its own cow, and a frame with a third,
-    new cow beside them leaves that one new."""
-    with _on_the_pad(38) as pad:
-        reg, t, cell = pad.reg, pad.t, pad.cell
-        height = pad.spec.camera_height()
-        camera = cell_to_ned(cell)
-        reg.remember(t, [_blob_at((0.1, 0.0), height), _blob_at((0.1, 2.0), height)], camera, cell, np.eye(2) * 0.05)
-        (_, west), (_, east) = reg._found_at
-        later, drift = t + 150.0, np.array([0.0, 1.3])
-        seen = [west + drift, east + drift]
-        assert reg.match(seen[0], later) == 1 and reg.match(seen[1], later) == 1, "one by one: both the east cow"
-        assert reg.assign(later, seen, [(False, False)] * 2) == [0, 1]
-        # a third cow two cells further east, in the same frame: not found before
-        third = east + np.array([0.0, 4.0]) + drift
-        assert reg.assign(later, [*seen, third], [(False, False)] * 3) == [0, 1, None]
-        # one sighting alone is assigned as `match` says
-        assert reg.assign(later, [seen[0]], [(False, False)]) == [reg.match(seen[0], later)]
-        assert reg.assign(later, [], []) == []
-
-
-def test_a_cut_blob_in_the_believed_cell_is_beside_the_camera() -> None:
-    """A new cow cut by the frame's east edge whose centre the camera estimate puts in the
-    believed cell is beside the camera (re-centred on, shown in the slot it lies towards), never
-    left to the view's centre slot, which the policy takes for a find the companion has not
-    made (flight seed 78: a corner cow passed 1.8 m off, then swept the field for, 54 moves
-    against 24 in the grid world)."""
-    with _on_the_pad(39) as pad:
-        reg, t, cell = pad.reg, pad.t, pad.cell
-        height = pad.spec.camera_height()
-        k = px_per_m(height)
-        cut = Blob(row=-0.1 * k, col=1.6 * k, pixels=90, cut=(False, False, False, True), inner_px=1.0 * k)
-        assert cut.at_edge and not cut.beyond_view(height)
-        off = np.asarray(cut.offset_ne(height))
-        camera = cell_to_ned(cell) - 0.7 * off  # the camera estimate puts the cow 0.3 * off from the centre
-        below, aside = reg.new_targets(t, [cut], cell, camera)
-        assert below == [] and aside == [cut]
-        # the same cow, the camera estimate a cell west: in the next cell, not beside
-        below, aside = reg.new_targets(t, [cut], cell, camera - np.array([0.0, 2.0]))
-        assert below == [] and aside == []
