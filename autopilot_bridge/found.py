@@ -22,10 +22,10 @@ from .estimator import GpsEstimator
 from .search_data import SearchSpec
 from .telemetry import TelemetryIntake
 
-#: a found target's cell is recorded (for `Registration.register_known`) only where the posterior makes it
-#: this probable per axis at the find: a cow found with the camera estimate 1-1.5 m off was
-#: recorded a cell off and every re-sighting then locked the frame there (held-out flight seeds
-#: 30 and 34: NEES 9)
+#: a found target's cell is recorded (for `Registration.register_known`) only where the
+#: posterior makes it this probable per axis at the find: a cow found with the camera estimate
+#: 1-1.5 m off was recorded a cell off and every re-sighting then locked the frame there
+#: (held-out flight seeds 30 and 34: NEES 9)
 RECORD_P = 0.9
 #: a target counts as found when the camera is truly over it: its centre within this of the
 #: nadir on both axes (the scorer's half cell less the detector's error); a target in the
@@ -92,7 +92,7 @@ class FoundTargets:
         made: flight seed 78 passed a corner cow 1.8 m off and swept the field for it, 54 moves
         against 24 in the grid world); or, whole in the frame, within NEAR_M of the nadir.
         Found before: the target's position in the autopilot's frame (`reading_at`: truth +
-        GPS bias) matches a target found (or seen again) earlier (`match`); the two
+        GPS bias) matches a target found (or seen again) earlier (`identify`); the two
         readings differ by the bias's drift in between (0.26 m sd over a decision, 0.8 m over
         minutes). Without this a target found a cell off the nadir, or
         seen from the next cell with the posterior a metre off, was found twice (20 flights:
@@ -109,10 +109,10 @@ class FoundTargets:
             if i is not None:
                 self._refresh(i, t, reading + off, b.cut_axes)
                 continue
-            here = blob_cells([b], camera_ne, height)[0] == (int(cell[0]), int(cell[1]))
             if np.abs(off).max() <= FOUND_M:
                 below.append(b)
-            elif here or (not b.at_edge and np.abs(off).max() <= NEAR_M):
+            elif ((not b.at_edge and np.abs(off).max() <= NEAR_M)
+                  or blob_cells([b], camera_ne, height)[0] == (int(cell[0]), int(cell[1]))):
                 aside.append(b)
         aside.sort(key=lambda b: float(np.abs(b.offset_ne(height)).max()))
         return below, aside
@@ -209,7 +209,7 @@ class FoundTargets:
     def told_cells(self, t: float, blobs: list[Blob],
                    ids: list[int | None] | None = None) -> list[tuple[int, int] | None]:
         """Per blob: the cell the policy was told it is in where it is a target found before
-        (matched by the autopilot's reading, `match`), else None. The view shows a found target
+        (matched by the autopilot's reading, `identify`), else None. The view shows a found target
         there, wherever the camera estimate now puts it: the policy's world shows found targets
         where they were found, and one shown a cell away was a target it had not found, which
         it chased back and forth (flight seed 9: 54 moves against 22 in the grid world)."""

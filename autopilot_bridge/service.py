@@ -18,8 +18,9 @@ This module is the decision loop; the service owns one part per concern, each in
 module: `telemetry` (GPS fixes and the autopilot's estimate off the link, read by their
 stamps), `registration` (the launch point and targets as GPS-free position measurements),
 `found` (the memory of the targets found, and which blobs of a frame they are), `pilot`
-(take-off, the setpoint stream and its deadline, landing) and `search_data` (the spec, log and progress it exchanges with the operator; re-exported
-here, so `from autopilot_bridge.service import SearchSpec` keeps working).
+(take-off, the setpoint stream and its deadline, landing) and `search_data` (the spec, log and
+progress it exchanges with the operator; re-exported here, so `from autopilot_bridge.service
+import SearchSpec` keeps working).
 """
 
 from __future__ import annotations
@@ -61,7 +62,8 @@ RECENTRE = 2
 
 class PolicyService:
     """The companion's search: owns the estimator, the visitation map, the frame requester and
-    the four parts (telemetry intake, found targets, registration, pilot), and runs the decision loop."""
+    the four parts (telemetry intake, found targets, registration, pilot), and runs the
+    decision loop."""
 
     def __init__(self, link: VehicleLink, policy: Policy, spec: SearchSpec, seed: int = 0,
                  detector: DetectorConfig | None = None, clock: Callable[[], float] = time.monotonic,

@@ -66,7 +66,7 @@ class PlannerParams:
     plan_from_belief: float = 0.5
 
     def __post_init__(self) -> None:
-        for k in ("pickup", "outer", "travel_offset", "edge", "herd"):
+        for k in ("pickup", "outer", "travel_offset", "edge", "herd", "plan_from_belief"):
             if not getattr(self, k) >= 0:
                 raise ValueError(f"PlannerParams.{k} must be >= 0 (got {getattr(self, k)})")
 
