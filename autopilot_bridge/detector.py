@@ -22,6 +22,8 @@ import numpy as np
 
 from sim.gridworld import valid_mask
 
+from .edges import edge_mask
+
 
 @dataclass(frozen=True)
 class DetectorConfig:
@@ -35,14 +37,24 @@ class DetectorConfig:
     colour_distance: float = 70.0
 
 
+def _targets_mask(f: np.ndarray, cfg: DetectorConfig) -> np.ndarray:
+    """(H, W, 3) float -> (H, W) bool: the pixels far from the field's grass in colour, the
+    track round the field (`edges.edge_mask`) left out. The grass is the median of the pixels
+    that are not track: the field dominates every frame but those over a corner of it, where the
+    track fills up to three quarters."""
+    track = edge_mask(f)
+    ground = f[~track] if not track.all() else f.reshape(-1, 3)
+    grass = np.median(ground.reshape(-1, 3), axis=0)
+    return (np.linalg.norm(f - grass, axis=-1) > cfg.colour_distance) & ~track
+
+
 def cell_fractions(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> np.ndarray:
     """(H, W, 3) uint8 -> (3, 3) fraction of non-grass pixels per cell (rows: north to south)."""
     h, w = frame.shape[:2]
     footprint = 2 * cfg.altitude_m * np.tan(np.radians(cfg.fov_deg / 2))
     px_per_m = w / footprint
     f = frame.astype(np.float32)
-    grass = np.median(f.reshape(-1, 3), axis=0)  # the field dominates every frame
-    off = np.linalg.norm(f - grass, axis=-1) > cfg.colour_distance
+    off = _targets_mask(f, cfg)
     out = np.zeros((3, 3))
     for r in range(3):
         for c in range(3):
@@ -158,8 +170,7 @@ def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> lis
 
     h, w = frame.shape[:2]
     f = frame.astype(np.float32)
-    grass = np.median(f.reshape(-1, 3), axis=0)
-    off = np.linalg.norm(f - grass, axis=-1) > cfg.colour_distance
+    off = _targets_mask(f, cfg)
     lab, n = _split_touching(off)
     lab, n = _split_coats(f, lab, n)
     lab, n = _split_long(lab, n, LONG_SD_M * px_per_m(cfg.altitude_m - CAMERA_BELOW_M, w))

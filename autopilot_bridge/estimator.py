@@ -289,6 +289,26 @@ class GpsEstimator:
         self._reduce()
         return w.sum(axis=0) / w.sum()
 
+    def observe_bound(self, t: float, axis: int, bound: float, below: bool, sd_m: float,
+                      miss: float = 0.02) -> None:
+        """Fuse that the true position along `axis` is below (or above) `bound`, give or take
+        sd_m: something that would be seen from beyond it is not in view (the field's edge).
+        Each component is weighed by how likely it puts the position on that side (its own
+        spread and sd_m together), with `miss` the chance the evidence is wrong (the edge there
+        but not found); their moments are kept. A one-sided measurement cannot be a Kalman
+        update; on a Gaussian sum it decides between the lattice's hypotheses, which is what it
+        is for (a frame a cell off would have had the border in view). On one component it
+        changes nothing."""
+        self._measurement_at(t, np.array([bound]), sd_m, "bound")
+        if len(self._logw) < 2:
+            return
+        s = np.sqrt(self._p[:, axis, axis] + sd_m**2)
+        z = (bound - self._x[:, axis]) / s * (1.0 if below else -1.0)
+        p = miss + (1.0 - miss) * np.array([_normal_cdf(float(v)) for v in z])
+        self._logw = self._logw + np.log(p)
+        self._logw -= self._logw.max()
+        self._reduce()
+
     def _reduce(self) -> None:
         """Prune components under PRUNE_W of the total and merge (moment matching) those whose
         positions agree within MERGE_SIGMAS (the same lattice hypothesis reached by two paths),
@@ -370,6 +390,10 @@ class GpsEstimator:
         x, p = _moments(self.weights, *self._predicted(t))
         when = self._t if t is None or t <= self._t else t
         return PositionPosterior(when, x[:3].copy(), p[:3, :3].copy(), x[3:6].copy())
+
+
+def _normal_cdf(z: float) -> float:
+    return 0.5 * (1.0 + math.erf(z / math.sqrt(2.0)))
 
 
 def _moments(w: np.ndarray, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -17,6 +17,7 @@ import numpy as np
 from sim.gridworld import cell_to_ned
 
 from .detector import Blob, blob_cells
+from .edges import EdgeSighting, border_ne, half_footprint_m
 from .estimator import GpsEstimator
 from .found import FOUND_M, FoundTargets
 from .link import VehicleLink
@@ -37,6 +38,20 @@ KNOWN_GATE = 5.0
 #: its sightings are not independent; fused at the detector's 0.3 m, 20 flights had a mean NEES
 #: of 3.6
 KNOWN_SD_M = 0.5
+#: an edge sighting's error (m): the border's place in the frame (rendered at the true height:
+#: 0.05 m sd, max 0.09) and the camera's height, by which the offset is scaled: the autopilot
+#: holds the commanded height on its barometer, which drifts (0.2 m sd in the simulator), so a
+#: border 3 m out reads 0.2 m off. Flown: 0.11 m sd within 1 m of the nadir, 0.25 m at 3-4 m
+EDGE_SD_M = 0.08
+EDGE_HEIGHT_SD_M = 0.25
+#: an edge sighting this many sigmas off the posterior along its axis says the posterior is
+#: wrong (a lattice registered a cell off), not the edge: the split of the GPS reading into
+#: position and bias is doubted first (`GpsEstimator.doubt_split`), so the edge moves the
+#: estimate to it instead of being averaged with a wrong frame
+EDGE_DOUBT = 3.0
+#: a border this far inside the frame's edge (m) is seen (rendered: every border 0.3 m or more
+#: inside, 532 of 532): one not seen is further out than the frame reaches, less this
+EDGE_REACH_MARGIN_M = 0.4
 
 
 class Registration:
@@ -87,6 +102,46 @@ class Registration:
         first_fix_t = self.intake.first_fix_t if self.intake.first_fix_t is not None else 0.0
         t_start = LAUNCH_S * math.ceil((first_fix_t + 0.5) / LAUNCH_S)
         return t_start, t_start + LAUNCH_S
+
+    def register_edges(self, t: float, edges: list[EdgeSighting]) -> int:
+        """The field's borders seen in the frame: each measures where the camera truly is along
+        its axis (the border's place less its offset from the nadir), exactly, whatever the
+        targets do (moving herds too). Fused before the targets, so the lattice's hypotheses
+        are weighed against a frame the edge has already put right. Returns how many."""
+        if not self.spec.register or not edges:
+            return 0
+        g, height = self.spec.grid, self.spec.camera_height()
+        used = 0
+        for e in edges:
+            sd = math.hypot(EDGE_SD_M, e.offset_m * EDGE_HEIGHT_SD_M / height)
+            z = border_ne(e.axis, e.side, g.width, g.height) - e.offset_m
+            post = self.estimator.posterior(t)
+            r = z - float(post.mean_ned[e.axis])
+            if r * r > EDGE_DOUBT**2 * (float(post.horizontal_cov[e.axis, e.axis]) + sd**2):
+                self.estimator.doubt_split(abs(r), (e.axis,))
+            self.estimator.observe_position(t, np.array([z]), sd, (e.axis,))
+            used += 1
+        return used
+
+    def register_unseen_edges(self, t: float, edges: list[EdgeSighting], fov_deg: float) -> None:
+        """The borders not seen in a frame are further from the camera than it reaches: each
+        weighs the position posterior's lattice hypotheses by how likely they put the camera
+        that far in (`GpsEstimator.observe_bound`). A frame a cell off towards a border would
+        have had it in view (flight seed 154: the camera believed a cell east, 3 m from the east
+        border, which the frame did not show; a cow registered there for 5 decisions)."""
+        if not self.spec.register or not self.spec.field_edge:
+            return
+        g, height = self.spec.grid, self.spec.camera_height()
+        reach = half_footprint_m(height, fov_deg) - EDGE_REACH_MARGIN_M
+        sd = math.hypot(EDGE_SD_M, reach * EDGE_HEIGHT_SD_M / height)
+        seen = {(e.axis, e.side) for e in edges}
+        for axis in (0, 1):
+            for side in (1, -1):
+                if (axis, side) not in seen:
+                    # side +1: the border lies north (east) of the camera, which is then south
+                    # (west) of it by more than the reach
+                    self.estimator.observe_bound(t, axis, border_ne(axis, side, g.width, g.height) - side * reach,
+                                                 side > 0, sd)
 
     def register_targets(self, t: float, blobs: list[Blob], cell: np.ndarray) -> tuple[int, bool]:
         """Static targets stand on cell centres: a target seen at a (GPS-free) offset from the

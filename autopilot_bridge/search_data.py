@@ -46,6 +46,10 @@ class SearchSpec:
     #: estimated bias (False: by the companion's posterior mean, which also carries its fixes'
     #: white noise)
     map_from_reading: bool = True
+    #: the field has a visible edge (a track or stubble round the grass, `sim.vehicle.field`):
+    #: a border not in view is then evidence the camera is further from it than the frame
+    #: reaches (`Registration.register_unseen_edges`). A border seen registers either way
+    field_edge: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
@@ -75,6 +79,9 @@ class SearchLog:
     seen: list[list[list[int]]] = field(default_factory=list)
     #: per decision: the targets' blobs registered as position measurements (0 when ambiguous)
     registered: list[int] = field(default_factory=list)
+    #: per decision: the field's borders seen and registered, [axis (0 north, 1 east), side (+1
+    #: north / east border), the border's offset from the camera (m)] (autopilot_bridge.edges)
+    edges: list[list[list[float]]] = field(default_factory=list)
     #: per decision: whether the position was taken as exact (the believed cell held >= exact_above)
     exact: list[bool] = field(default_factory=list)
     #: per decision: where the map and the view placed the camera (field north, east)

@@ -42,6 +42,7 @@ from .detector import (
     show_cells,
     valid_moves,
 )
+from .edges import find_edges
 from .estimator import GpsEstimator
 from .found import FoundTargets
 from .images import FrameRequester
@@ -144,6 +145,12 @@ class PolicyService:
                 if self.spec.register and self.spec.map_from_reading:
                     self.intake.fuse_reading(t_k, READING_SD_M)
                 blobs = find_blobs(frame, self.det) if frame is not None else []
+                # the field's edge first: exact along its axis, it puts the frame right before the
+                # targets' lattice is weighed
+                edges = find_edges(frame, self.spec.camera_height(), self.det.fov_deg) if frame is not None else []
+                self.registration.register_edges(t_k, edges)
+                if frame is not None:
+                    self.registration.register_unseen_edges(t_k, edges, self.det.fov_deg)
                 # which blobs are targets found before: once, jointly (`FoundTargets.identify`)
                 ids = self.found.identify(t_k, blobs)
                 known, rest = self.registration.register_known(t_k, blobs, ids)
@@ -165,6 +172,7 @@ class PolicyService:
             height = self.spec.camera_height()
             self.log.blobs.append([[round(v, 3) for v in b.offset_ne(height)] for b in blobs])
             self.log.registered.append(registered)
+            self.log.edges.append([[e.axis, e.side, round(e.offset_m, 3)] for e in edges])
             post = self.estimator.posterior(t_k)
             exact = self.spec.visit_map == "hard"
             if not exact:  # known to the cell: the crisp visit, as the grid world's

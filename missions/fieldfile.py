@@ -31,6 +31,9 @@ class FieldSpec:
     connect: str | None = None  # the companion's pymavlink address for this vehicle
     instance: int | None = None
     physics: str | None = None
+    #: the paddock's edge is visible (the SITL renders a track round the grass): the companion
+    #: reads a border not in view as evidence (`SearchSpec.field_edge`)
+    edge: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": KIND,
@@ -38,7 +41,7 @@ class FieldSpec:
                 "cell_m": self.cell_m, "width": self.grid.width, "height": self.grid.height,
                 "targets": self.grid.n_targets, "distribution": self.grid.distribution,
                 "motion": self.grid.motion, "target_period": self.grid.target_period,
-                "connect": self.connect, "instance": self.instance, "physics": self.physics}
+                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -66,4 +69,7 @@ def read_field(path: Path) -> FieldSpec:
         raise FieldFileError(f"field file {path}: bad or missing entry ({type(e).__name__}: {e})") from e
     if not cell_m > 0:
         raise FieldFileError(f"field file {path}: cell_m must be positive (got {cell_m})")
-    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"))
+    edge = d.get("edge", False)  # field files written before the edge was rendered: none
+    if not isinstance(edge, bool):
+        raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
+    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge)

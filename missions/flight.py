@@ -185,7 +185,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
 
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
-    spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves, visit_map=visit_map)
+    spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves, visit_map=visit_map,
+                      field_edge=cfg.field_edge)
     t0 = time.monotonic()
     try:
         with FlightProgress(f"flight ({pol.name})") if progress else _nothing() as bar:

@@ -38,7 +38,8 @@ def fly_lossy_search(faults: LinkFaults, seed: int = 0, max_moves: int | None = 
     sitl = Sitl(cfg).start()
     link = VehicleLink(f"udpin:127.0.0.1:{cport}")
     service = PolicyService(link, load_policy(None, cfg=grid),
-                            SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves), seed=seed)
+                            SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves,
+                                       field_edge=cfg.field_edge), seed=seed)
     t0, error, log = time.monotonic(), None, service.log
     landed = False
     try:

@@ -38,6 +38,10 @@ def register(app: typer.Typer) -> None:
         cell_m: float | None = typer.Option(None, "--cell-m", help="Cell size (m) (default: field file, else 2)."),
         policy: str | None = typer.Option(None, "--policy", help="A registered policy (see `uavsearch eval --help`)."),
         checkpoint: Path | None = typer.Option(None, "--checkpoint", help="A trained network or DRQN checkpoint."),
+        field_edge: bool | None = typer.Option(
+            None, "--field-edge/--no-field-edge",
+            help="The field's edge is visible (a track round the grass): a border not in view is evidence of "
+                 "where the vehicle is (default: the field file's, else no)."),
         altitude: float = typer.Option(3.5, "--altitude", help="Search altitude above home (m), 1 to 30."),
         max_moves: int | None = typer.Option(None, "--max-moves", help="Stop after this many moves (default: t_e)."),
         move_timeout: float = typer.Option(20.0, "--move-timeout", help="Seconds one move may take before aborting."),
@@ -102,6 +106,7 @@ def register(app: typer.Typer) -> None:
         if fs is not None and (grid.width, grid.height, grid.n_targets) != (g0.width, g0.height, g0.n_targets):
             typer.echo(f"warning: flying a {grid.width} x {grid.height} field with {grid.n_targets} targets; "
                        f"{field} says {g0.width} x {g0.height} with {g0.n_targets}", err=True)
+        edge = pick(field_edge, fs.edge if fs is not None else False)
         address = connect or (fs.connect if fs is not None and fs.connect else "udpin:0.0.0.0:14540")
         from autopilot_bridge.link import check_address
 
@@ -122,7 +127,7 @@ def register(app: typer.Typer) -> None:
         config = {"connect": address, "field": None if field is None else str(field), "grid": grid.to_dict(),
                   "origin": [origin.lat_deg, origin.lon_deg, origin.alt_m], "policy": pol.name,
                   "checkpoint": None if checkpoint is None else str(checkpoint), "altitude": altitude,
-                  "max_moves": max_moves, "on_abort": on_abort.value}
+                  "max_moves": max_moves, "on_abort": on_abort.value, "field_edge": edge}
         from missions.keys import KeyFileError, read_signing_key
 
         try:
@@ -136,7 +141,8 @@ def register(app: typer.Typer) -> None:
                    f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
         try:
             with FlightProgress(f"search ({pol.name})") as progress:
-                service = PolicyService(link, pol, SearchSpec(origin, grid, altitude, max_moves=max_moves), seed,
+                spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge)
+                service = PolicyService(link, pol, spec, seed,
                                         on_progress=progress)
                 end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
                                      move_timeout_s=move_timeout)

@@ -42,6 +42,10 @@ def register(app: typer.Typer) -> None:
         target_step_s: float = typer.Option(
             4.0, "--target-step-s", help="Simulated seconds per grid-world step of moving targets (the companion's "
             "decision period: the herd moves at the grid world's pace per decision)."),
+        field_edge: bool = typer.Option(
+            True, "--field-edge/--no-field-edge",
+            help="Render the paddock's edge (a track round the grass), which the companion registers its "
+                 "position on near the borders; --no-field-edge: grass to the horizon."),
         field_out: Path = typer.Option(
             Path("out/sitl/field.json"), "--field-out",
             help="Write the field (origin, size, cell size, |R|, motion, address) here for `run --field`; "
@@ -109,7 +113,7 @@ def register(app: typer.Typer) -> None:
                         f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
-                             target_step_s=target_step_s,
+                             target_step_s=target_step_s, field_edge=field_edge,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
@@ -121,7 +125,7 @@ def register(app: typer.Typer) -> None:
             qgc = "connects by itself (UDP 14550)" if gcs == 14550 else f"add a UDP comm link on port {gcs}"
             typer.echo(f"    QGroundControl      {qgc}")
             fpath = field_out if count == 1 else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
-            write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value),
+            write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge),
                         seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")

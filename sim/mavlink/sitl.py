@@ -50,6 +50,9 @@ class SitlConfig:
     seed: int = 0
     camera: bool | None = None  # None: on for pybullet; on a kinematic body it renders a PyBullet scene of its own
     camera_px: int = 50
+    #: the paddock's edge: a headland track round the field's grass (`sim.vehicle.field`), which
+    #: the companion registers its position on near the borders; False: grass to the horizon
+    field_edge: bool = True
     #: simulated seconds per grid-world step of the targets' motion: the companion's decision
     #: period (autopilot_bridge SearchSpec.decision_period_s), so cattle move at the grid world's
     #: pace per decision (a target moves on every target_period-th step), from the first arming
@@ -164,7 +167,7 @@ class Sitl(BackgroundRunner):
                 cid = self._scene = pybullet.connect(pybullet.DIRECT)
             # the PyBullet world is centred on the spawn point: the field is shifted to match
             self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed,
-                                origin=self.episode.agent[0])
+                                origin=self.episode.agent[0], edge=cfg.field_edge)
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
             camera = self._render
         self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None

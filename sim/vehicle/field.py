@@ -1,6 +1,12 @@
 """The field the UAV searches: a grass plane over the grid (2 m cells) and cattle-like
 targets built from primitives (torso, head, four legs; random heading and coat), placed and
-moved by the grid world's placement and motion models. Visual only: nothing collides."""
+moved by the grid world's placement and motion models. Visual only: nothing collides.
+
+Round the grass, optionally, the paddock's edge: a headland track of bare earth from the grid's
+outer cell borders out (a real field is fenced, a track or stubble beside the fence). The
+companion sees it within two cells of the border and registers on it (a position measurement
+with no lattice ambiguity: `autopilot_bridge.detector.find_edges`). Without it the ground is
+grass to the horizon and only the targets tell the camera where it truly is."""
 
 from __future__ import annotations
 
@@ -18,6 +24,9 @@ COATS = {
     "red": (0.62, 0.22, 0.10, 1),
 }
 GRASS = (0.30, 0.52, 0.18, 1)
+#: the headland track round the field: far in colour from the grass and every coat, shaded or not
+#: (rendered (176, 157, 109); a white coat's shaded side comes no nearer than 41 in RGB)
+EDGE = (0.74, 0.66, 0.46, 1)
 
 
 def _cow_shape(client: int, coat: tuple[float, ...]) -> int:
@@ -46,15 +55,23 @@ def cell_to_enu(cells: np.ndarray, cell_m: float = DEFAULT_CELL_M) -> np.ndarray
 
 class Field:
     def __init__(self, client: int, width: int, height: int, n_targets: int, cell_m: float = DEFAULT_CELL_M,
-                 seed: int = 0, margin_cells: int = 4, origin: np.ndarray | None = None) -> None:
-        """origin: the cell at the PyBullet world's origin (SITL puts the spawn cell there)."""
+                 seed: int = 0, margin_cells: int = 4, origin: np.ndarray | None = None,
+                 edge: bool = False) -> None:
+        """origin: the cell at the PyBullet world's origin (SITL puts the spawn cell there).
+        edge: the margin round the grid is the headland track (EDGE), not grass."""
         self.cid, self.w, self.h, self.cell_m = client, width, height, cell_m
         self.origin = np.zeros(2) if origin is None else np.asarray(origin, dtype=float)
         self.rng = np.random.default_rng([seed, 0xC0A7])
-        # the grass covers the grid plus a margin, so the camera never sees the void
-        half = [(width + 2 * margin_cells) * cell_m / 2, (height + 2 * margin_cells) * cell_m / 2, 0.01]
+        # the ground covers the grid plus a margin, so the camera never sees the void; with an
+        # edge the grass covers the grid's cells only, a little above the track round it
+        self.edge = edge
         centre = cell_to_enu(np.array([(width - 1) / 2, (height - 1) / 2]) - self.origin, cell_m)
-        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(GRASS), physicsClientId=client)
+        outer = [(width + 2 * margin_cells) * cell_m / 2, (height + 2 * margin_cells) * cell_m / 2, 0.01]
+        grass = [width * cell_m / 2, height * cell_m / 2, 0.01] if edge else outer
+        if edge:
+            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=outer, rgbaColor=list(EDGE), physicsClientId=client)
+            self.track = p.createMultiBody(0, -1, vis, [centre[0], centre[1], -0.03], physicsClientId=client)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=grass, rgbaColor=list(GRASS), physicsClientId=client)
         self.ground = p.createMultiBody(0, -1, vis, [centre[0], centre[1], -0.008], physicsClientId=client)
         names = list(COATS)
         self.coats = [names[i] for i in self.rng.integers(0, len(names), n_targets)]

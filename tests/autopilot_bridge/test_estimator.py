@@ -215,3 +215,31 @@ def test_the_same_lattice_ambiguity_seen_again_is_not_counted_again() -> None:
     assert est.bias_ned[1] == pytest.approx(est.component_bias()[int(np.argmax(weights)), 1])
     est.observe_position(0.0, np.array([truth]), 0.3, axes=(1,))  # a found cow's known cell
     assert est.n_components == 1 and est.posterior().mean_ned[1] == pytest.approx(truth, abs=0.1)
+
+
+def test_a_bound_weighs_the_lattice_hypotheses_not_one_gaussian() -> None:
+    """observe_bound (a border not in view: the camera is further in than the frame reaches):
+    each component is weighed by the chance it puts the position on the bound's side; a frame a
+    cell towards the border loses to the one that would not have seen it. On one component (no
+    hypotheses to choose between) it changes nothing; a bad sd is a clear error."""
+    gps = GpsModel(HomePosition(), 5)
+    est = GpsEstimator()
+    for k in range(30):
+        t = 0.2 * k
+        fix = gps.sample(t, np.zeros(3), np.zeros(3))
+        est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
+    one = copy.deepcopy(est)
+    one.observe_bound(one.time_s, 1, one.mean[1] - 0.5, True, 0.3)
+    np.testing.assert_allclose(one.mean, est.mean)
+    # two hypotheses, two metres apart east
+    m0 = est.mean[1]
+    w = est.observe_position_mixture(est.time_s, 1, np.array([m0 - 1.0, m0 + 1.0]), 0.2)
+    assert est.n_components == 2 and w.min() > 0.3
+    _, means, _ = est.components()
+    i_east = int(np.argmax(means[:, 1]))
+    # the camera is west of m0 + 0.2 (give or take 0.3 m): the east frame is all but ruled out
+    est.observe_bound(est.time_s, 1, m0 + 0.2, True, 0.3)
+    assert est.n_components == 2 and est.weights[i_east] < 0.05
+    assert est.mean[1] == pytest.approx(m0 - 1.0, abs=0.15)
+    with pytest.raises(ValueError):
+        est.observe_bound(est.time_s, 0, 1.0, True, 0.0)

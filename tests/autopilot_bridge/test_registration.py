@@ -4,12 +4,15 @@ it is seen again, and its known cell measures where the camera truly is."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from bridge_pad import blob_at, on_the_pad
 
 from autopilot_bridge.detector import Blob, px_per_m
+from autopilot_bridge.edges import EdgeSighting, border_ne, half_footprint_m
 from autopilot_bridge.found import RECORD_P, lattice_p
-from autopilot_bridge.registration import KNOWN_SD_M, Registration
+from autopilot_bridge.registration import EDGE_REACH_MARGIN_M, KNOWN_SD_M, Registration
 from sim.gridworld import cell_to_ned
 
 
@@ -132,3 +135,37 @@ def test_the_launch_point_registers_the_bias_from_the_autopilots_estimate() -> N
         assert pad.estimator.n_components == 1
         post = pad.estimator.posterior()
         assert np.abs(post.mean_ned[:2] - pad.intake.home_in_field()[:2]).max() < 0.1
+
+
+def test_the_field_edge_registers_its_axis_and_an_unseen_border_picks_the_frame() -> None:
+    """The field's west border seen 3 m west of the nadir says where the camera truly is east-
+    west, whatever the lattice said (a posterior a cell off is doubted and moved, not averaged);
+    the borders not in view weigh the lattice's hypotheses: the frame that would have had the
+    east border in view loses."""
+    with on_the_pad(34) as pad:
+        estimator, reg, t, spec = pad.estimator, pad.reg, pad.t, pad.spec
+        g, height = spec.grid, spec.camera_height()
+        # the posterior sure of a frame a cell east of the truth
+        truth_e = 2.0
+        estimator.doubt_split(3.0, (1,))
+        estimator.observe_position(t, np.array([truth_e + 2.0]), 0.2, (1,))
+        west = EdgeSighting(axis=1, side=-1, offset_m=border_ne(1, -1, g.width, g.height) - truth_e, lines=40)
+        assert reg.register_edges(t, [west]) == 1
+        post = estimator.posterior(t)
+        assert abs(post.mean_ned[1] - truth_e) < 0.25 and post.horizontal_cov[1, 1] < 0.25**2
+        # two hypotheses a cell apart near the east border (x = 9.5 cells, 19 m): 16 m (cell 8)
+        # would have it 3 m out, in view; 14 m (cell 7) 5 m out, beyond the frame's reach
+        estimator.doubt_split(3.0, (1,))
+        estimator.observe_position_mixture(t, 1, np.array([14.0, 16.0]), 0.2)
+        _, means, _ = estimator.components(t)
+        assert estimator.n_components >= 2 and means[:, 1].min() < 14.5 and means[:, 1].max() > 15.5
+        assert 3.0 < half_footprint_m(height) - EDGE_REACH_MARGIN_M < 5.0
+        before = estimator.weights.copy()
+        reg.register_unseen_edges(t, [west], 100.0)  # a field with no visible edge: no evidence
+        np.testing.assert_allclose(estimator.weights, before)
+        fenced = Registration(pad.link, replace(spec, field_edge=True), estimator, pad.intake)
+        fenced.register_unseen_edges(t, [west], 100.0)
+        w = estimator.weights
+        _, means, _ = estimator.components(t)
+        assert w[means[:, 1] > 15.0].sum() < 0.05
+        assert abs(estimator.posterior(t).mean_ned[1] - 14.0) < 0.3

@@ -40,10 +40,17 @@ def test_a_policy_that_cannot_serve_the_size_says_so_before_take_off(tmp_path: P
 
 def test_field_file_round_trip_and_errors(tmp_path: Path) -> None:
     spec = FieldSpec(HomePosition(51.0, -2.0, 12.0), GridConfig(width=7, height=5, n_targets=2, motion="herd"),
-                     2.0, "udpin:0.0.0.0:14541", 1, "pybullet")
+                     2.0, "udpin:0.0.0.0:14541", 1, "pybullet", edge=True)
     write_field(tmp_path / "f.json", spec, seed=3)
     back = read_field(tmp_path / "f.json")
-    assert back.grid.width == 7 and back.grid.motion == "herd" and back.origin == spec.origin
+    assert back.grid.width == 7 and back.grid.motion == "herd" and back.origin == spec.origin and back.edge
+    # a field file from before the edge was rendered has none; a bad value names itself
+    d = json.loads((tmp_path / "f.json").read_text())
+    (tmp_path / "old.json").write_text(json.dumps({k: v for k, v in d.items() if k != "edge"}))
+    assert read_field(tmp_path / "old.json").edge is False
+    (tmp_path / "edge.json").write_text(json.dumps({**d, "edge": "yes"}))
+    r = runner.invoke(app, ["run", "--field", str(tmp_path / "edge.json")])
+    assert r.exit_code == 2 and "edge" in _text(r.output) and "'yes'" in _text(r.output), r.output
     assert json.loads((tmp_path / "f.json").read_text())["provenance"]["seed"] == 3
     (tmp_path / "bad.json").write_text('{"kind": "uavsearch field", "width": "x"}')
     for name, words in (("missing.json", ["missing.json", "does not exist"]), ("bad.json", ["bad.json", "bad or missing"])):
