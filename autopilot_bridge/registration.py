@@ -161,9 +161,10 @@ class Registration:
         used, off_centre = 0, False
         cell_m = 2.0
         height = self.spec.camera_height()
-        for b in sorted(blobs, key=lambda b: b.sd_m):
+        for b in sorted(blobs, key=lambda b: b.fuse_sd_m(height)):
             if b.beyond_view(height):
                 continue
+            sd = b.fuse_sd_m(height)
             mean = self.estimator.posterior(t).mean_ned[:2]
             offset = np.asarray(b.offset_ne(height))
             (cx, cy), = blob_cells([b], mean, height)
@@ -184,14 +185,14 @@ class Registration:
                 continue
             if forced:
                 self.estimator.doubt_split(cell_m, forced)
-                self.estimator.observe_position(t, z[list(forced)], b.sd_m, forced)
+                self.estimator.observe_position(t, z[list(forced)], sd, forced)
             for i in soft:
                 # the cell it stands on along this axis and the field's cells either side of it
                 # (north is -y, east is x), as a mixture weighed by the posterior's components
                 idx, size = (on[1], g.height) if i == 0 else (on[0], g.width)
                 near = [j for j in (idx - 1, idx, idx + 1) if 0 <= j < size]
                 centres = np.array([-cell_m * j if i == 0 else cell_m * j for j in near])
-                self.estimator.observe_position_mixture(t, i, centres - offset[i], b.sd_m)
+                self.estimator.observe_position_mixture(t, i, centres - offset[i], sd)
             used += 1
             if on == (int(cell[0]), int(cell[1])) and not b.at_edge and np.abs(offset).max() > FOUND_M:
                 off_centre = True
