@@ -293,19 +293,32 @@ class GpsEstimator:
                       miss: float = 0.02) -> None:
         """Fuse that the true position along `axis` is below (or above) `bound`, give or take
         sd_m: something that would be seen from beyond it is not in view (the field's edge).
-        Each component is weighed by how likely it puts the position on that side (its own
-        spread and sd_m together), with `miss` the chance the evidence is wrong (the edge there
-        but not found); their moments are kept. A one-sided measurement cannot be a Kalman
-        update; on a Gaussian sum it decides between the lattice's hypotheses, which is what it
-        is for (a frame a cell off would have had the border in view). On one component it
-        changes nothing."""
+        The likelihood is miss + (1 - miss) Phi((bound - x) / sd_m) (`miss`: the chance the
+        evidence is wrong, the edge there but not found). Each component is weighed by how
+        likely it makes the evidence and takes the exact mean and variance of its posterior
+        along the axis (a probit update, moment matched), carried to the rest of the state by
+        its correlations as a Kalman update would. On a Gaussian sum it decides between the
+        lattice's hypotheses (a frame a cell off would have had the border in view); on each
+        component it trims the side the evidence rules out."""
+        from scipy.stats import norm
+
         self._measurement_at(t, np.array([bound]), sd_m, "bound")
-        if len(self._logw) < 2:
-            return
-        s = np.sqrt(self._p[:, axis, axis] + sd_m**2)
-        z = (bound - self._x[:, axis]) / s * (1.0 if below else -1.0)
-        p = miss + (1.0 - miss) * np.array([_normal_cdf(float(v)) for v in z])
-        self._logw = self._logw + np.log(p)
+        sign = 1.0 if below else -1.0
+        mu, v = self._x[:, axis], self._p[:, axis, axis]
+        root = np.sqrt(v + sd_m**2)
+        u = sign * (bound - mu) / root
+        log_phi_cdf = norm.logcdf(u)
+        lam = np.exp(norm.logpdf(u) - log_phi_cdf)  # phi(u) / Phi(u), stable far in the tail
+        mean_t = mu - sign * v * lam / root  # the moments under the probit likelihood alone
+        var_t = v - v**2 * lam * (u + lam) / root**2
+        w_miss, w_hit = miss, (1.0 - miss) * np.exp(log_phi_cdf)
+        z = w_miss + w_hit
+        mean = (w_miss * mu + w_hit * mean_t) / z
+        var = np.maximum((w_miss * (v + mu**2) + w_hit * (var_t + mean_t**2)) / z - mean**2, 1e-12)
+        g = self._p[:, :, axis] / v[:, None]  # (n, 9): how the state moves with the axis
+        self._x = self._x + g * (mean - mu)[:, None]
+        self._p = self._p + g[:, :, None] * g[:, None, :] * (var - v)[:, None, None]
+        self._logw = self._logw + np.log(z)
         self._logw -= self._logw.max()
         self._reduce()
 
@@ -390,10 +403,6 @@ class GpsEstimator:
         x, p = _moments(self.weights, *self._predicted(t))
         when = self._t if t is None or t <= self._t else t
         return PositionPosterior(when, x[:3].copy(), p[:3, :3].copy(), x[3:6].copy())
-
-
-def _normal_cdf(z: float) -> float:
-    return 0.5 * (1.0 + math.erf(z / math.sqrt(2.0)))
 
 
 def _moments(w: np.ndarray, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -217,22 +217,36 @@ def test_the_same_lattice_ambiguity_seen_again_is_not_counted_again() -> None:
     assert est.n_components == 1 and est.posterior().mean_ned[1] == pytest.approx(truth, abs=0.1)
 
 
-def test_a_bound_weighs_the_lattice_hypotheses_not_one_gaussian() -> None:
+def test_a_bound_weighs_the_lattice_hypotheses_and_trims_each() -> None:
     """observe_bound (a border not in view: the camera is further in than the frame reaches):
-    each component is weighed by the chance it puts the position on the bound's side; a frame a
-    cell towards the border loses to the one that would not have seen it. On one component (no
-    hypotheses to choose between) it changes nothing; a bad sd is a clear error."""
+    on one Gaussian, the posterior's mean and variance along the axis are the exact ones (the
+    prior times miss + (1 - miss) Phi((bound - x) / sd), integrated on a fine grid), and the
+    rest of the state follows by its correlation; on a sum, a frame a cell towards the border
+    loses to the one that would not have seen it. A bad sd is a clear error."""
+    from scipy.stats import norm
+
     gps = GpsModel(HomePosition(), 5)
     est = GpsEstimator()
     for k in range(30):
         t = 0.2 * k
         fix = gps.sample(t, np.zeros(3), np.zeros(3))
         est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
-    one = copy.deepcopy(est)
-    one.observe_bound(one.time_s, 1, one.mean[1] - 0.5, True, 0.3)
-    np.testing.assert_allclose(one.mean, est.mean)
+    m0, v0 = est.mean[1], est.cov[1, 1]
+    x = np.linspace(m0 - 10, m0 + 10, 400001)
+    for bound, below, sd in ((m0 - 0.3, True, 0.3), (m0 + 0.2, False, 0.2), (m0 + 3.0, True, 0.3), (m0 - 9, True, 0.3)):
+        one = copy.deepcopy(est)
+        one.observe_bound(one.time_s, 1, bound, below, sd)
+        like = 0.02 + 0.98 * norm.cdf(((bound - x) if below else (x - bound)) / sd)
+        post = np.exp(-((x - m0) ** 2) / (2 * v0)) * like
+        post /= post.sum()
+        mean, var = float(post @ x), float(post @ (x - post @ x) ** 2)
+        assert one.mean[1] == pytest.approx(mean, abs=1e-4)
+        assert one.cov[1, 1] == pytest.approx(var, rel=1e-3)
+        assert np.all(np.linalg.eigvalsh(one.cov) > -1e-12)
+        # the bias east moves against the position east (GPS measures their sum)
+        if abs(one.mean[1] - m0) > 0.05:
+            assert np.sign(one.mean[7] - est.mean[7]) == -np.sign(one.mean[1] - m0)
     # two hypotheses, two metres apart east
-    m0 = est.mean[1]
     w = est.observe_position_mixture(est.time_s, 1, np.array([m0 - 1.0, m0 + 1.0]), 0.2)
     assert est.n_components == 2 and w.min() > 0.3
     _, means, _ = est.components()
