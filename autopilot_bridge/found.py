@@ -17,10 +17,11 @@ from scipy.optimize import linear_sum_assignment
 
 from sim.gridworld import cell_to_ned, nearest_cell
 
-from .detector import FAR_REACH_M, Blob, blob_cells, px_per_m
+from .detector import Blob, px_per_m
 from .estimator import GpsEstimator
 from .search_data import SearchSpec
 from .telemetry import TelemetryIntake
+from .view import FAR_REACH_M, blob_cells
 
 #: a found target's cell is recorded (for `Registration.register_known`) only where the
 #: posterior makes it this probable per axis at the find: a cow found with the camera estimate

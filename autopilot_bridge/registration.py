@@ -16,13 +16,14 @@ import numpy as np
 
 from sim.gridworld import cell_to_ned
 
-from .detector import Blob, blob_cells
+from .detector import Blob
 from .edges import EdgeSighting, border_ne, half_footprint_m
 from .estimator import GpsEstimator
 from .found import FOUND_M, FoundTargets
 from .link import VehicleLink
 from .search_data import SearchSpec
 from .telemetry import READING_SD_M, TelemetryIntake
+from .view import blob_cells
 
 log = logging.getLogger(__name__)
 

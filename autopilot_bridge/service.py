@@ -33,15 +33,7 @@ import numpy as np
 from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 
-from .detector import (
-    DetectorConfig,
-    blobs_to_view,
-    far_likelihood,
-    find_blobs,
-    show_beside,
-    show_cells,
-    valid_moves,
-)
+from .detector import DetectorConfig, find_blobs
 from .edges import find_edges
 from .estimator import GpsEstimator
 from .found import FoundTargets
@@ -52,6 +44,7 @@ from .probmap import ProbabilisticVisitationMap, cell_probabilities
 from .registration import Registration
 from .search_data import Progress, SearchLog, SearchSpec, save_log
 from .telemetry import READING_SD_M, TelemetryIntake
+from .view import blobs_to_view, far_likelihood, show_beside, show_cells, valid_moves
 
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 

@@ -59,7 +59,7 @@ def flight_policy(name: str | None, checkpoint: Path | None, grid: GridConfig, s
 
 def blank_observation(grid: GridConfig) -> Observation:
     """The first observation of a search in the field's middle: nothing seen, nothing visited."""
-    from autopilot_bridge.detector import valid_moves
+    from autopilot_bridge.view import valid_moves
 
     cell = np.array([grid.width // 2, grid.height // 2])
     view = np.zeros((1, 3, 3, 3), np.uint8)

@@ -23,7 +23,8 @@ def test_a_target_straddling_cells_lights_the_one_cell_its_centre_is_in() -> Non
     """The camera truly off its cell's centre by the GPS bias (0.7 m, 0.8 m): the window
     detector lit 2-3 windows per cow; the blob centroid puts each cow in exactly one cell, and
     the offsets it measures (GPS-free) are within the calibration's error of the truth."""
-    from autopilot_bridge.detector import blobs_to_view, find_blobs
+    from autopilot_bridge.detector import find_blobs
+    from autopilot_bridge.view import blobs_to_view
     from sim.gridworld import cell_to_ned
 
     r = ViewRenderer(10, 10, 3, image=50, seed=2)
@@ -54,7 +55,8 @@ def test_a_target_straddling_cells_lights_the_one_cell_its_centre_is_in() -> Non
 def test_the_near_end_of_a_target_two_cells_away_is_not_a_neighbour() -> None:
     """A cow two cells north shows its near end at the frame's top edge; read as a neighbour,
     the planner stepped back and forth chasing it (the demo's moves 29-40)."""
-    from autopilot_bridge.detector import blobs_to_view, find_blobs
+    from autopilot_bridge.detector import find_blobs
+    from autopilot_bridge.view import blobs_to_view
     from sim.gridworld import cell_to_ned
 
     r = ViewRenderer(10, 10, 1, image=50, seed=3)
@@ -139,7 +141,8 @@ def test_the_legs_of_cows_beyond_the_frame_are_not_targets() -> None:
     """Two cows 4 m south, their backs beyond the frame: their legs are lower, so nearer the
     nadir in the image, and one shows as a 4 px speck inside the frame. Read as a target in the
     next cell, the policy went back and forth to that empty cell for 290 moves (flight seed 59)."""
-    from autopilot_bridge.detector import blobs_to_view, find_blobs
+    from autopilot_bridge.detector import find_blobs
+    from autopilot_bridge.view import blobs_to_view
     from sim.gridworld import cell_to_ned
     from sim.vehicle.frames import ned_to_enu
 
@@ -183,7 +186,8 @@ def test_a_single_cow_stays_one_target_whatever_its_heading() -> None:
 def test_a_target_beside_the_camera_lights_the_slot_it_lies_towards_never_the_centre() -> None:
     """A cow rendered 0.95 m east of the camera, in the camera's own cell but not under it: the
     policy would count the centre slot as a find, so show_beside lights the east slot."""
-    from autopilot_bridge.detector import blobs_to_view, find_blobs, show_beside
+    from autopilot_bridge.detector import find_blobs
+    from autopilot_bridge.view import blobs_to_view, show_beside
     from sim.gridworld import cell_to_ned
     from sim.vehicle.field import cell_to_enu
 
@@ -218,7 +222,8 @@ def test_a_near_end_at_the_frame_edge_is_weighed_between_one_and_two_cells_out()
     metre and more south of its cell, or two cells north of one over its cell: the blob alone
     cannot tell, the position posterior weighs the two (far_likelihood), and nothing is
     placed beside the column it is in."""
-    from autopilot_bridge.detector import far_likelihood, find_blobs
+    from autopilot_bridge.detector import find_blobs
+    from autopilot_bridge.view import far_likelihood
     from sim.gridworld import cell_to_ned
     from sim.vehicle.camera import ALTITUDE_M
 
