@@ -90,6 +90,8 @@ class SearchLog:
     setpoints_local: list[list[float]] = field(default_factory=list)
     #: times the vehicle centred over a target in its cell before deciding (no move counted)
     recentred: int = 0
+    #: times centring on a target put the camera over the next cell (the search went on there)
+    centred_into_next: int = 0
     #: per decision: the targets seen, [north, east] offsets from the camera (m)
     blobs: list[list[list[float]]] = field(default_factory=list)
     frames: int = 0

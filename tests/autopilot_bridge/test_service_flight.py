@@ -4,10 +4,17 @@ scored against the simulator's truth."""
 import json
 from pathlib import Path
 
+import numpy as np
+from bridge_pad import free_port
 from pymavlink import mavutil
 
+from autopilot_bridge.link import VehicleLink
+from autopilot_bridge.service import PolicyService, SearchSpec
+from autopilot_bridge.telemetry import READING_SD_M
 from missions.flight import fly_search
-from sim.gridworld import GridConfig
+from missions.flight_policy import flight_policy
+from sim.gridworld import GridConfig, cell_to_ned
+from sim.mavlink import Sitl, SitlConfig
 
 
 def test_policy_service_flies_a_search_and_lands(tmp_path: Path) -> None:
@@ -28,3 +35,38 @@ def test_policy_service_flies_a_search_and_lands(tmp_path: Path) -> None:
     while (m := tlog.recv_match()) is not None:
         kinds.add(m.get_type())
     assert {"SET_POSITION_TARGET_LOCAL_NED", "ENCAPSULATED_DATA", "COMMAND_LONG"} <= kinds
+
+
+def test_centring_into_the_next_cell_moves_the_search_there() -> None:
+    """PolicyService._centred_cell, on a real vehicle's link: after centring on a target, where
+    the posterior is sure the camera is over the next cell the search goes on from that cell;
+    where it is not sure, from the cell the policy chose."""
+    grid = GridConfig()
+    sitl = Sitl(SitlConfig(instance=30, speedup=4.0, physics="kinematic", camera=False, gcs_link=False,
+                           api_local_port=free_port(), api_remote_port=free_port(), grid=grid)).start()
+    link = VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}")
+    try:
+        svc = PolicyService(link, flight_policy("belief", None, grid, 0), SearchSpec(origin=sitl.field_origin, grid=grid))
+        link.wait_heartbeat()
+        link.wait_for(lambda: len(svc.intake.local_history) > 5 and svc.intake.has_fixes(), 20, "telemetry")
+        t = svc.intake.local_history[-1][0]
+        svc.intake.fuse_until(t)
+        assert svc.intake.fuse_reading(t, READING_SD_M)  # as at every decision: the autopilot's estimate
+        cell = np.array([int(v) for v in sitl.episode.agent[0]])
+        nxt = cell + (1 if cell[0] < grid.width - 1 else -1, 0)
+        start = (svc.estimator._logw.copy(), svc.estimator._x.copy(), svc.estimator._p.copy())
+        # registered on a target: the camera truly over the next cell's centre
+        svc.estimator.doubt_split(3.0)
+        for _ in range(3):
+            svc.estimator.observe_position(t, cell_to_ned(nxt), 0.05)
+        assert tuple(svc._centred_cell(t, cell)) == tuple(nxt)
+        assert svc.log.centred_into_next == 1
+        # the same position, but known to a metre only: not sure, the chosen cell stays
+        svc.estimator._logw, svc.estimator._x, svc.estimator._p = start
+        svc.estimator.doubt_split(1.0)
+        svc.estimator.observe_position(t, cell_to_ned(cell + (nxt - cell) * 0.6), 1.0)
+        assert tuple(svc._centred_cell(t, cell)) == tuple(cell)
+        assert svc.log.centred_into_next == 1
+    finally:
+        link.close()
+        sitl.stop()
