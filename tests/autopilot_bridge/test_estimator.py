@@ -20,6 +20,17 @@ def _fly(seed: int, sigma: float = 1.0, n: int = 300, dt: float = 0.2):
 SEEDS = 24
 
 
+def _standing(seed: int, fixes: int = 30) -> GpsEstimator:
+    """A filter that has fused `fixes` 5 Hz fixes of a receiver standing at the origin."""
+    gps = GpsModel(HomePosition(), seed)
+    est = GpsEstimator()
+    for k in range(fixes):
+        t = 0.2 * k
+        fix = gps.sample(t, np.zeros(3), np.zeros(3))
+        est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
+    return est
+
+
 def _hover_search(seed: int, cfg: EstimatorConfig, duration_s: float = 300.0) -> np.ndarray:
     """The simulator's own GPS receiver (white noise on a Gauss-Markov bias) on a vehicle that
     flies 2 m legs every 4 s in the autopilot's estimate frame (so truly at setpoint - bias, as
@@ -163,12 +174,7 @@ def test_a_sighting_on_one_of_several_cells_is_fused_as_a_mixture() -> None:
     the exact posterior (a Gaussian prior times a sum of Gaussians at the candidates),
     integrated numerically on a fine grid; a clear sighting tightens like a plain measurement,
     an ambiguous one (camera midway between two candidates) does not pull the mean."""
-    gps = GpsModel(HomePosition(), 3)
-    est = GpsEstimator()
-    for k in range(30):
-        t = 0.2 * k
-        fix = gps.sample(t, np.zeros(3), np.zeros(3))
-        est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
+    est = _standing(seed=3)
     sd = 0.3
     for cands in (np.array([-1.7, 0.3, 2.3]), np.array([-1.0, 1.0]), np.array([0.9])):
         trial = copy.deepcopy(est)
@@ -225,12 +231,7 @@ def test_a_bound_weighs_the_lattice_hypotheses_and_trims_each() -> None:
     loses to the one that would not have seen it. A bad sd is a clear error."""
     from scipy.stats import norm
 
-    gps = GpsModel(HomePosition(), 5)
-    est = GpsEstimator()
-    for k in range(30):
-        t = 0.2 * k
-        fix = gps.sample(t, np.zeros(3), np.zeros(3))
-        est.update(t, HomePosition().geodetic_to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m), fix.eph_m, fix.epv_m)
+    est = _standing(seed=5)
     m0, v0 = est.mean[1], est.cov[1, 1]
     x = np.linspace(m0 - 10, m0 + 10, 400001)
     for bound, below, sd in ((m0 - 0.3, True, 0.3), (m0 + 0.2, False, 0.2), (m0 + 3.0, True, 0.3), (m0 - 9, True, 0.3)):
