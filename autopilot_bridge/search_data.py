@@ -101,6 +101,9 @@ class SearchLog:
     #: frames captured after their time because this computer asked too late (too slow for
     #: the simulation's speed-up): those decisions are not reproducible
     late_frames: int = 0
+    #: waits for a fix or an estimate sample stamped before a decision that gave up (lost on
+    #: the link, or this computer too loaded): those decisions may differ from run to run
+    late_inputs: int = 0
     wall_s: float = 0.0
 
 

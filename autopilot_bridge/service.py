@@ -248,6 +248,7 @@ class PolicyService:
                 local = self.pilot.fly_to(cell)
             t_k = t_k + self.spec.decision_period_s
         self.log.wall_s = self.clock() - t_start
+        self.log.late_inputs = self.intake.input_waits_timed_out
         return self.log
 
     def _centred_cell(self, t: float, cell: np.ndarray) -> np.ndarray:

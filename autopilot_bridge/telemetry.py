@@ -41,6 +41,8 @@ LOCAL_KEEP = 10_000
 FIX_PERIOD_S = 0.2
 #: the autopilot's estimate's period (LOCAL_POSITION_NED at 10 Hz)
 LOCAL_PERIOD_S = 0.1
+#: wall-clock seconds a decision waits for the fix or estimate sample stamped before it
+INPUT_WAIT_S = 0.5
 
 #: a received GPS fix: (simulated time s, field NED m, eph m, epv m)
 Fix = tuple[float, np.ndarray, float, float]
@@ -64,6 +66,10 @@ class TelemetryIntake:
         self._fixes: deque[Fix] = deque()  # received, not yet fused
         #: fixes left unfused because the filter had moved past their stamp (fuse_until)
         self.fixes_late = 0
+        #: waits for a fix or an estimate sample stamped before a decision that gave up
+        #: (INPUT_WAIT_S): lost on the link, or this computer too loaded to read it in time; the
+        #: decision then used what had come, so it may differ from run to run
+        self.input_waits_timed_out = 0
         self._fix_lock = threading.Lock()
         #: the autopilot's estimate, LOCAL_POSITION_NED
         self.local_history: deque[LocalSample] = deque(maxlen=LOCAL_KEEP)
@@ -111,9 +117,9 @@ class TelemetryIntake:
         companion before or after sending it); the one before is waited for a little."""
         t = t - FIX_PERIOD_S / 2
         try:
-            self.link.wait_for(lambda: self.last_gps_t > t - FIX_PERIOD_S + 1e-6, 0.5, "")
+            self.link.wait_for(lambda: self.last_gps_t > t - FIX_PERIOD_S + 1e-6, INPUT_WAIT_S, "")
         except LinkError:
-            pass  # a fix lost on the link: fuse what came
+            self.input_waits_timed_out += 1  # a fix lost on the link: fuse what came
         with self._fix_lock:
             due = []
             while self._fixes and self._fixes[0][0] <= t + 1e-6:
@@ -174,9 +180,9 @@ class TelemetryIntake:
         t = t - LOCAL_PERIOD_S / 2
         try:
             self.link.wait_for(lambda: bool(self.local_history) and self.local_history[-1][0] > t - LOCAL_PERIOD_S,
-                               0.5, "")
+                               INPUT_WAIT_S, "")
         except LinkError:
-            pass  # lost on the link: the latest that came
+            self.input_waits_timed_out += 1  # lost on the link: the latest that came
         window = [x for x in list(self.local_history) if t - SETTLED_LOOKBACK_S <= x[0] <= t + 1e-6]
         return max(window, key=lambda x: x[0]) if window else None
 

@@ -225,7 +225,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    grid_error=log_grid_error, visit_map=visit_map,
                    gps={"sigma_h": gps.sigma_h, "bias_sigma_h": gps.bias_sigma_h, "bias_tau_s": gps.bias_tau_s},
                    decision_period_s=spec.decision_period_s, schedule_slips=log.schedule_slips,
-                   late_frames=log.late_frames, cells=[list(c) for c in log.cells],
+                   late_frames=log.late_frames, late_inputs=log.late_inputs, cells=[list(c) for c in log.cells],
                    offset_from_cell_m=offsets_from_cells(log.times_s, log.cells, truth),
                    true_height_m=(np.round(np.interp(log.times_s, truth[:, 0], sitl.height[:len(truth)]), 3).tolist()
                                   if len(truth) and log.times_s else []),

@@ -134,7 +134,7 @@ def write_report(out: Path, r: dict[str, Any], log: dict[str, Any], visited: np.
         "",
         f"Outcome: {_outcome(r.get('outcome'))}."
         f" Decisions every {r.get('decision_period_s')} simulated s; schedule slips {r.get('schedule_slips')}, late "
-        f"frames {r.get('late_frames')}; frames {r.get('frames')} (missing {r.get('frames_missing')}); visitation map: "
+        f"frames {r.get('late_frames')}, inputs waited for in vain {r.get('late_inputs')}; frames {r.get('frames')} (missing {r.get('frames_missing')}); visitation map: "
         f"{r.get('visit_map')}; mean position sd {_f(r.get('mean_posterior_sd_m'))} m; "
         f"{_pct(r.get('nees_inside_95'))} of decisions inside the 95 % NEES bound. Git {r.get('git_revision')}.",
         "",

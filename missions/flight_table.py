@@ -55,7 +55,7 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
                        gps_sigma_m=job.gps_sigma_m, visit_map=job.visit_map, plot=job.out is not None,
                        free_ports=True)
     keep = ("policy", "moves", "grid_moves", "flight_grid_ratio", "optimal_moves", "believed_found", "truly_found",
-            "targets", "schedule_slips", "late_frames", "lockstep_timeouts", "frames_missing", "nees_mean",
+            "targets", "schedule_slips", "late_frames", "late_inputs", "lockstep_timeouts", "frames_missing", "nees_mean",
             "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells")
     # the move cap: the job's, else the episode's t_e (the flight's default)
     cap = job.max_moves if job.max_moves is not None else int(r["config"]["t_e"])
@@ -108,6 +108,7 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
         "nees_inside_95": float(np.mean(nees < 5.991464547107979)) if len(nees) else None,
         "schedule_slips": int(sum(r["schedule_slips"] for r in ok)),
         "late_frames": int(sum(r.get("late_frames", 0) for r in ok)),
+        "late_inputs": int(sum(r.get("late_inputs", 0) for r in ok)),
         "goal_met": bool(len(ratios) and not any(r.get("capped") for r in ok) and len(ok) == len(rows)
                          and ratios.mean() <= GOAL_MEAN_RATIO and ratios.max() <= GOAL_MAX_RATIO),
     }
@@ -197,7 +198,8 @@ def _summary_lines(s: dict[str, Any]) -> list[str]:
         f"{_f(s['nees_interval_eff'][1])} for n_eff = {s['nees_n_eff']:.0f} independent samples, one per bias "
         f"correlation time; {_f(s['nees_interval_strict'][0])}-{_f(s['nees_interval_strict'][1])} if every "
         f"decision were independent), {_pct(s['nees_inside_95'])} of samples inside the 95 % bound. Schedule "
-        f"slips: {s['schedule_slips']}, late frames: {s['late_frames']}. Errors: {s['errors']}.",
+        f"slips: {s['schedule_slips']}, late frames: {s['late_frames']}, inputs waited for in vain: "
+        f"{s.get('late_inputs', 0)}. Errors: {s['errors']}.",
     ]
 
 
