@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .edges import edge_mask
+from .edges import edge_mask, half_footprint_m
 
 
 @dataclass(frozen=True)
@@ -48,8 +48,7 @@ def _targets_mask(f: np.ndarray, cfg: DetectorConfig) -> np.ndarray:
 def cell_fractions(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> np.ndarray:
     """(H, W, 3) uint8 -> (3, 3) fraction of non-grass pixels per cell (rows: north to south)."""
     h, w = frame.shape[:2]
-    footprint = 2 * cfg.altitude_m * np.tan(np.radians(cfg.fov_deg / 2))
-    px_per_m = w / footprint
+    px_per_m = w / (2 * half_footprint_m(cfg.altitude_m, cfg.fov_deg))
     f = frame.astype(np.float32)
     off = _targets_mask(f, cfg)
     out = np.zeros((3, 3))

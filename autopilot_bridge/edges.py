@@ -58,14 +58,14 @@ def edge_mask(frame: np.ndarray, rgb: tuple[float, float, float] = EDGE_RGB,
     return np.linalg.norm(f - np.asarray(rgb, np.float32), axis=-1) < distance
 
 
-def ground_px_per_m(camera_height_m: float, width_px: int = 50, fov_deg: float = 100.0) -> float:
-    """Pixels per metre on the ground (pinhole, nadir) with the camera this high above it."""
-    return (width_px / 2) / math.tan(math.radians(fov_deg / 2)) / max(camera_height_m, 0.1)
-
-
 def half_footprint_m(camera_height_m: float, fov_deg: float = 100.0) -> float:
     """Half the ground the frame spans along an axis (m), the camera this high above it."""
     return camera_height_m * math.tan(math.radians(fov_deg / 2))
+
+
+def ground_px_per_m(camera_height_m: float, width_px: int = 50, fov_deg: float = 100.0) -> float:
+    """Pixels per metre on the ground (pinhole, nadir) with the camera this high above it."""
+    return (width_px / 2) / half_footprint_m(max(camera_height_m, 0.1), fov_deg)
 
 
 def _runs(mask: np.ndarray, grass: np.ndarray) -> np.ndarray:
@@ -77,8 +77,7 @@ def _runs(mask: np.ndarray, grass: np.ndarray) -> np.ndarray:
     return np.where((runs < mask.shape[1]) & ~grass[np.arange(len(runs)), end], 0, runs)
 
 
-def find_edges(frame: np.ndarray, camera_height_m: float, fov_deg: float = 100.0,
-               mask: np.ndarray | None = None) -> list[EdgeSighting]:
+def find_edges(frame: np.ndarray, camera_height_m: float, fov_deg: float = 100.0) -> list[EdgeSighting]:
     """The field's borders seen in a north-up frame, each with its offset from the nadir.
 
     Per side (north, south, west, east), each pixel line across it is read from the frame's
@@ -88,7 +87,7 @@ def find_edges(frame: np.ndarray, camera_height_m: float, fov_deg: float = 100.0
     its centre is beyond the border, so the border lies between the run's last pixel centre and
     the next one's: at the run's length, in pixels from the frame's edge (to half a pixel)."""
     h, w = frame.shape[:2]
-    m = edge_mask(frame) if mask is None else mask
+    m = edge_mask(frame)
     if not m.any() or m.all():
         return []
     f = np.asarray(frame, dtype=np.float32)

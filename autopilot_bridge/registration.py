@@ -114,7 +114,7 @@ class Registration:
         g, height = self.spec.grid, self.spec.camera_height()
         used = 0
         for e in edges:
-            sd = math.hypot(EDGE_SD_M, e.offset_m * EDGE_HEIGHT_SD_M / height)
+            sd = _edge_sd(e.offset_m, height)
             z = border_ne(e.axis, e.side, g.width, g.height) - e.offset_m
             post = self.estimator.posterior(t)
             r = z - float(post.mean_ned[e.axis])
@@ -134,7 +134,7 @@ class Registration:
             return
         g, height = self.spec.grid, self.spec.camera_height()
         reach = half_footprint_m(height, fov_deg) - EDGE_REACH_MARGIN_M
-        sd = math.hypot(EDGE_SD_M, reach * EDGE_HEIGHT_SD_M / height)
+        sd = _edge_sd(reach, height)
         seen = {(e.axis, e.side) for e in edges}
         for axis in (0, 1):
             for side in (1, -1):
@@ -242,3 +242,9 @@ class Registration:
             self.estimator.observe_position(t, z, KNOWN_SD_M, tuple(axes))
             used += 1
         return used, rest
+
+
+def _edge_sd(offset_m: float, camera_height_m: float) -> float:
+    """The sd (m) of a border read this far from the nadir: the frame's (EDGE_SD_M) and the
+    height's error scaling the offset (EDGE_HEIGHT_SD_M)."""
+    return math.hypot(EDGE_SD_M, offset_m * EDGE_HEIGHT_SD_M / camera_height_m)
