@@ -3,7 +3,9 @@ bug in the policy): the one rule is that the companion never walks away from an 
 in the air without having told it to come down, and says what it saw.
 
 `rtl` and `land` hand the vehicle to the autopilot's own RTL / LAND; `hold` hands it to the
-operator (PX4's AUTO.LOITER) for a bounded time and lands it if nobody has by then. Each
+operator (the dialect's hold mode: PX4's AUTO.LOITER, ArduCopter's BRAKE, which holds without
+sticks where its LOITER would follow a throttle stick at rest) for a bounded time and lands it
+if nobody has by then. Each
 waits, bounded, for the disarm that follows the touchdown. A refused or unanswered command
 falls back to LAND; if even that gets no answer the outcome says so (the autopilot's own
 offboard-loss failsafe is then all that is left).
@@ -71,14 +73,15 @@ def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 
         return Touchdown(action.value, commanded, True, 0.0, "never armed or already disarmed")
     if tel.landed_state == ON_GROUND:  # armed on the ground (e.g. failed during take-off)
         _try(link.disarm, "disarm", commanded, notes)
-    elif tel.mode in ("AUTO.LAND", "AUTO.RTL"):  # already coming down (e.g. Ctrl-C while landing)
+    elif link.dialect is not None and link.dialect.descending(tel.mode):  # already coming down (Ctrl-C while landing)
         notes.append(f"already in {tel.mode}: kept it")
         echo(f"abort: the vehicle is already in {tel.mode}; waiting for disarm (up to {timeout_s:.0f} s)")
     else:
         ok = {
             AbortAction.rtl: lambda: _try(link.return_to_launch, "RTL", commanded, notes),
             AbortAction.land: lambda: _try(link.land, "LAND", commanded, notes),
-            AbortAction.hold: lambda: _try(lambda: link.set_mode("AUTO.LOITER"), "HOLD", commanded, notes),
+            AbortAction.hold: lambda: _try(lambda: link.set_mode(link.require_dialect().hold_mode), "HOLD", commanded,
+                                           notes),
         }[action]()
         lost = time.monotonic() - tel.heartbeat_time > link_lost_s
         if not ok and action is not AbortAction.land and not lost:  # refused, or unanswered on a live link

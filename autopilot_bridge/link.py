@@ -12,12 +12,13 @@ import logging
 import re
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from pymavlink import mavutil
 
-from . import px4_modes
+from .dialects import Dialect, by_name, for_autopilot
 from .tlog import CompanionTlog
 
 mavlink = mavutil.mavlink
@@ -52,13 +53,21 @@ class LinkError(RuntimeError):
 
 
 class CommandRejected(RuntimeError):
-    def __init__(self, command: int, result: int) -> None:
-        self.command, self.result = command, result
+    """The vehicle said no; `reason` is what it said alongside (ArduPilot's STATUSTEXT
+    "PreArm: ..."), so the operator reads one line that says why."""
+
+    def __init__(self, command: int, result: int, reason: str = "") -> None:
+        self.command, self.result, self.reason = command, result, reason
         cname = mavlink.enums["MAV_CMD"].get(command)
         rname = mavlink.enums["MAV_RESULT"].get(result)
         super().__init__(
             f"{cname.name if cname else command} -> {rname.name if rname else result}"
+            + (f" ({reason})" if reason else "")
         )
+
+
+class WrongAutopilot(LinkError):
+    """The vehicle's HEARTBEAT names another autopilot family than the one asked for."""
 
 
 @dataclass
@@ -75,6 +84,12 @@ class Telemetry:
     home: dict = field(default_factory=dict)  # lat, lon, alt
     battery_remaining: float | None = None
     statustext: list[str] = field(default_factory=list)
+    #: (monotonic time, severity, text) of the latest STATUSTEXTs, for refusals' reasons
+    statustext_log: list[tuple[float, int, str]] = field(default_factory=list)
+    autopilot: int | None = None  # HEARTBEAT.autopilot of the vehicle
+    ekf_flags: int | None = None  # EKF_STATUS_REPORT.flags (ArduPilot)
+    #: GPS_GLOBAL_ORIGIN: the local frame's origin (lat, lon, alt), where the autopilot says it
+    local_origin: dict = field(default_factory=dict)
 
 
 class VehicleLink:
@@ -99,8 +114,17 @@ class VehicleLink:
         signing_key: bytes | None = None,
         tlog_meta: dict | None = None,
         heartbeat_hz: float = 1.0,
+        dialect: str | Dialect = "auto",
     ) -> None:
         check_address(address)
+        #: the autopilot family's dialect: given, or taken from the first autopilot HEARTBEAT
+        self.dialect: Dialect | None = by_name(dialect) if isinstance(dialect, str) and dialect != "auto" else (
+            None if isinstance(dialect, str) else dialect)
+        self._dialect_asked = self.dialect
+        self.dialect_mismatch: str | None = None
+        self._autopilot_id: tuple[int, int] | None = None  # (system, component) of the autopilot
+        self._params: dict[str, tuple[float, int]] = {}  # PARAM_VALUE by name: (raw value, type)
+        self._param_cv = threading.Condition()
         if signing_key is not None and len(signing_key) != 32:
             raise ValueError("a MAVLink2 signing key is 32 bytes")
         self.conn = mavutil.mavlink_connection(
@@ -127,6 +151,7 @@ class VehicleLink:
         self._stop = threading.Event()
         self._rx = threading.Thread(target=self._receive, name="mavlink-rx", daemon=True)
         self._rx.start()
+        self.heartbeats_silenced = False
         self._hb_period = 1.0 / heartbeat_hz if heartbeat_hz > 0 else 0.0
         self._hb = threading.Thread(target=self._heartbeats, name="mavlink-hb", daemon=True)
         if self._hb_period:
@@ -135,7 +160,7 @@ class VehicleLink:
     def _force_mavlink2(self, sysid: int, compid: int) -> None:
         """pymavlink starts a link in MAVLink 1 unless MAVLINK20 is set, and on the first v2
         packet replaces its MAVLink object, dropping the signing setup: start in v2."""
-        from pymavlink.dialects.v20 import common as v20
+        from pymavlink.dialects.v20 import ardupilotmega as v20
 
         if self.conn.WIRE_PROTOCOL_VERSION != "2.0":
             self.conn.mav = v20.MAVLink(self.conn, srcSystem=sysid, srcComponent=compid)
@@ -204,8 +229,16 @@ class VehicleLink:
             log.warning("receive thread: %s raised %s: %s (%d errors so far)", where, type(e).__name__, e, n,
                         exc_info=n == 1)
 
+    def silence_heartbeats(self, silent: bool) -> None:
+        """Stop (or resume) this companion's HEARTBEATs: where the autopilot's companion-loss
+        failsafe watches them (ArduPilot's GCS failsafe), a hung decision loop must fall silent
+        for the failsafe to take over, as a dead process does."""
+        self.heartbeats_silenced = silent
+
     def _heartbeats(self) -> None:
         while not self._stop.wait(self._hb_period):
+            if self.heartbeats_silenced:
+                continue
             try:
                 with self._send_lock:
                     self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
@@ -218,9 +251,14 @@ class VehicleLink:
         t, kind = self.telemetry, msg.get_type()
         if kind == "HEARTBEAT" and msg.type != mavlink.MAV_TYPE_GCS and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID:
             self._lock_vehicle()
+            if self._autopilot_id is None:
+                self._autopilot_id = (msg.get_srcSystem(), msg.get_srcComponent())
+                self._choose_dialect(msg.autopilot)
             t.heartbeat_time = time.monotonic()
+            t.autopilot = msg.autopilot
             t.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-            t.mode = px4_modes.decode(msg.custom_mode)
+            if self.dialect is not None:
+                t.mode = self.dialect.decode_mode(msg.custom_mode)
         elif kind == "COMMAND_ACK":
             with self._ack_cv:
                 self._acks[msg.command] = msg.result
@@ -250,20 +288,59 @@ class VehicleLink:
         elif kind == "STATUSTEXT":
             t.statustext.append(msg.text)
             del t.statustext[:-STATUSTEXT_KEEP]
+            t.statustext_log.append((time.monotonic(), msg.severity, msg.text))
+            del t.statustext_log[:-STATUSTEXT_KEEP]
+        elif kind == "EKF_STATUS_REPORT":
+            t.ekf_flags = msg.flags
+        elif kind == "GPS_GLOBAL_ORIGIN":
+            t.local_origin = {"lat": msg.latitude * 1e-7, "lon": msg.longitude * 1e-7, "alt": msg.altitude * 1e-3}
+        elif kind == "PARAM_VALUE":
+            with self._param_cv:
+                self._params[msg.param_id] = (msg.param_value, msg.param_type)
+                self._param_cv.notify_all()
+
+    def _choose_dialect(self, autopilot: int) -> None:
+        """The family from the first autopilot HEARTBEAT; a family other than the one asked for
+        is remembered as a mismatch that wait_heartbeat reports."""
+        found = for_autopilot(autopilot)
+        if self.dialect is None:
+            self.dialect = found
+            if found is None:
+                self.dialect_mismatch = (f"the vehicle's autopilot (MAV_AUTOPILOT {autopilot}) is neither PX4 (12) "
+                                         "nor ArduPilot (3): give --autopilot px4|ardupilot to fly it anyway")
+            else:
+                log.info("autopilot: %s (HEARTBEAT.autopilot %d)", found.name, autopilot)
+        elif found is not None and found is not self.dialect:
+            self.dialect_mismatch = (f"--autopilot {self.dialect.name} was given, but the vehicle's HEARTBEAT says "
+                                     f"{found.name} (MAV_AUTOPILOT {autopilot})")
 
     # -- waiting -------------------------------------------------------------------------
-    def wait_for(self, predicate, timeout: float, what: str) -> None:
+    def wait_for(self, predicate, timeout: float, what: str | Callable[[], str]) -> None:
+        """Poll predicate until true; LinkError naming `what` (or what `what()` says is still
+        missing then) after timeout seconds."""
         end = time.monotonic() + timeout
         while not predicate():
             if time.monotonic() > end:
-                raise LinkError(f"timed out after {timeout:.0f} s waiting for {what}")
+                raise LinkError(f"timed out after {timeout:.0f} s waiting for {what() if callable(what) else what}")
             time.sleep(0.02)
 
     def wait_heartbeat(self, timeout: float = 10.0) -> None:
+        """The vehicle's first HEARTBEAT; WrongAutopilot when it is not the family asked for."""
         self.wait_for(lambda: self.telemetry.heartbeat_time > 0, timeout, "a vehicle heartbeat")
+        if self.dialect_mismatch is not None:
+            raise WrongAutopilot(self.dialect_mismatch)
+
+    def require_dialect(self) -> Dialect:
+        if self.dialect is None:
+            raise LinkError("the autopilot's family is not known yet (no HEARTBEAT from it)")
+        return self.dialect
 
     @property
     def target(self) -> tuple[int, int]:
+        """(system, component) of the autopilot: the source of its first HEARTBEAT (another
+        component on the same link, a camera, never takes its place)."""
+        if self._autopilot_id is not None:
+            return self._autopilot_id
         return self.conn.target_system or 1, self.conn.target_component or 1
 
     # -- commands ------------------------------------------------------------------------
@@ -279,6 +356,7 @@ class VehicleLink:
         with self._ack_cv:
             self._acks.pop(cmd, None)
         wait = timeout
+        sent_at = time.monotonic()
         for attempt in range(retries):
             if attempt:
                 self.stats.command_retries += 1
@@ -295,7 +373,7 @@ class VehicleLink:
                         end = time.monotonic() + progress_timeout  # working on it: wait, do not resend
                         continue
                     if result != mavlink.MAV_RESULT_ACCEPTED:
-                        raise CommandRejected(cmd, result)
+                        raise CommandRejected(cmd, result, self._reason_since(sent_at))
                     return result
             wait = min(wait * 1.5, 3.0)
         raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries} tries")
@@ -306,13 +384,75 @@ class VehicleLink:
     def disarm(self, force: bool = False) -> None:
         self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196 if force else 0)
 
+    def _reason_since(self, t0: float, settle_s: float = 0.3) -> str:
+        """The warnings the vehicle sent since t0 (ArduPilot explains a refusal in STATUSTEXT
+        "PreArm: ...", sometimes just after its ACK): waited for briefly, joined."""
+        def texts() -> list[str]:
+            return [txt for t, sev, txt in list(self.telemetry.statustext_log)
+                    if t >= t0 - 0.05 and sev <= mavlink.MAV_SEVERITY_WARNING]
+
+        end = time.monotonic() + settle_s
+        while not texts() and time.monotonic() < end:
+            time.sleep(0.02)
+        return "; ".join(dict.fromkeys(texts()))
+
     def set_mode(self, name: str) -> None:
-        main, sub = px4_modes.encode(name)
-        self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
+        """A mode by its family's name (PX4 'AUTO.LOITER', ArduPilot 'GUIDED')."""
+        self.command(mavlink.MAV_CMD_DO_SET_MODE, *self.require_dialect().set_mode_params(name))
 
     def takeoff(self, altitude_m: float) -> None:
+        """MAV_CMD_NAV_TAKEOFF to altitude_m as the dialect counts it (PX4 AMSL, ArduPilot
+        above home: Dialect.takeoff_altitude)."""
         nan = float("nan")
         self.command(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, nan, nan, nan, altitude_m)
+
+    # -- parameters ----------------------------------------------------------------------
+    def get_param(self, name: str, timeout: float = 1.0, retries: int = 5) -> float | None:
+        """A parameter's value (PARAM_REQUEST_READ, resent until PARAM_VALUE answers); None
+        when the vehicle has no such parameter (it stays silent, as PX4 and ArduPilot do)."""
+        return self._param_exchange(name, None, timeout, retries)
+
+    def set_param(self, name: str, value: float, timeout: float = 1.0, retries: int = 5) -> float:
+        """PARAM_SET, resent until the vehicle echoes PARAM_VALUE; returns the value it now
+        holds (a refusal leaves the old one: the caller compares)."""
+        got = self._param_exchange(name, value, timeout, retries)
+        if got is None:
+            raise LinkError(f"no PARAM_VALUE for {name} after {retries} PARAM_SETs")
+        return got
+
+    def _param_exchange(self, name: str, value: float | None, timeout: float, retries: int) -> float | None:
+        dialect = self.require_dialect()
+        ptype = self._params.get(name, (0.0, mavlink.MAV_PARAM_TYPE_REAL32))[1]
+        if value is not None and name not in self._params:  # the type first: PX4 packs integers bytewise
+            if self._param_exchange(name, None, timeout, retries) is None:
+                raise LinkError(f"the vehicle has no parameter {name}")
+            ptype = self._params[name][1]
+        for _ in range(retries):
+            with self._param_cv:
+                self._params.pop(name, None)
+            with self._send_lock:
+                if value is None:
+                    self.conn.mav.param_request_read_send(*self.target, name.encode(), -1)
+                else:
+                    self.conn.mav.param_set_send(*self.target, name.encode(), dialect.param_encode(value, ptype), ptype)
+            with self._param_cv:
+                if self._param_cv.wait_for(lambda: name in self._params, timeout):
+                    raw, ptype = self._params[name]
+                    return dialect.param_value(raw, ptype)
+        return None
+
+    # -- streams -------------------------------------------------------------------------
+    def request_streams(self) -> list[str]:
+        """Ask for the telemetry the dialect needs (ArduPilot streams nothing unasked); each
+        refusal is returned as a line, not raised: a message the vehicle cannot send at that
+        rate is the operator's to read about, the readiness checks say what is missing."""
+        refused = []
+        for s in self.require_dialect().streams:
+            try:
+                self.set_message_interval(s.msg_id, s.hz)
+            except (CommandRejected, LinkError) as e:
+                refused.append(f"SET_MESSAGE_INTERVAL {mavlink.mavlink_map[s.msg_id].msgname}: {e}")
+        return refused
 
     def land(self) -> None:
         self.command(mavlink.MAV_CMD_NAV_LAND)

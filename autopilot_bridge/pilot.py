@@ -21,6 +21,7 @@ from sim.gridworld import cell_to_ned
 from .estimator import GpsEstimator
 from .images import FrameRequester
 from .link import CommandRejected, LinkError, VehicleLink, mavlink
+from .preflight import ensure_failsafe
 from .registration import Registration
 from .search_data import SearchLog, SearchSpec
 from .telemetry import TelemetryIntake
@@ -70,13 +71,18 @@ class Pilot:
         """The setpoint thread: repeats the latest setpoint at 20 Hz (PX4 leaves OFFBOARD when
         they stop) while the decision loop keeps its promise."""
         starved = False
+        by_heartbeat = self.link.require_dialect().heartbeat_feeds_failsafe
         while not self._stream_stop.is_set():
             if time.monotonic() > self._alive_until:
                 if not starved:
-                    log.warning("decision loop silent past its deadline: setpoints stopped, the vehicle's "
-                                "offboard-loss failsafe takes over")
+                    log.warning("decision loop silent past its deadline: setpoints %sstopped, the vehicle's "
+                                "companion-loss failsafe takes over", "and heartbeats " if by_heartbeat else "")
+                    if by_heartbeat:
+                        self.link.silence_heartbeats(True)
                 starved = True
             elif self._setpoint is not None:
+                if starved and by_heartbeat:
+                    self.link.silence_heartbeats(False)
                 starved = False
                 with self._setpoint_lock:  # never resend an old setpoint after a new one
                     self.link.set_position_ned(*self._setpoint)
@@ -99,17 +105,19 @@ class Pilot:
         with self._setpoint_lock:
             self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
             self.link.set_position_ned(*self._setpoint)
-        if self.link.telemetry.mode != "OFFBOARD":  # the first leg, or the autopilot dropped out
-            self._enter_offboard()
+        if self.link.telemetry.mode != self.link.require_dialect().guided_mode:
+            self._enter_offboard()  # the first leg, or the autopilot dropped out
         return local
 
     def _enter_offboard(self) -> None:
-        """OFFBOARD, which PX4 refuses (temporarily) until it has a fresh setpoint: the one just
-        sent can be lost on a lossy radio, so the stream's next ones are waited for and the
-        switch asked again (20 % loss: the first ask was refused in one search in ten)."""
+        """The mode setpoints are flown in (PX4 OFFBOARD, ArduPilot GUIDED). PX4 refuses
+        OFFBOARD (temporarily) until it has a fresh setpoint: the one just sent can be lost on a
+        lossy radio, so the stream's next ones are waited for and the switch asked again (20 %
+        loss: the first ask was refused in one search in ten)."""
+        mode = self.link.require_dialect().guided_mode
         for attempt in range(OFFBOARD_TRIES):
             try:
-                self.link.set_mode("OFFBOARD")
+                self.link.set_mode(mode)
                 return
             except CommandRejected as e:
                 if e.result != mavlink.MAV_RESULT_TEMPORARILY_REJECTED or attempt == OFFBOARD_TRIES - 1:
@@ -131,8 +139,14 @@ class Pilot:
         lockstep the captures only wait for their instants."""
         link = self.link
         link.wait_heartbeat()
-        link.wait_for(lambda: bool(link.telemetry.home) and link.telemetry.gps.get("fix_type", 0) >= 3,
-                      timeout, "GPS fix and home position")
+        dialect = link.require_dialect()
+        self.log.preflight.append(f"autopilot: {dialect.name}")
+        self.log.preflight += link.request_streams()
+        # before anything flies: a vehicle a dead companion would leave in the air is refused
+        # (or, --set-failsafe, made safe); while the fixes of the launch window come in
+        self.log.preflight += ensure_failsafe(link, link.conn.mav.srcSystem, self.spec.set_failsafe, log.warning)
+        link.wait_for(lambda: dialect.not_ready(link.telemetry) is None, timeout,
+                      lambda: dialect.not_ready(link.telemetry) or "readiness")
         link.wait_for(lambda: self.intake.has_fixes() or self.estimator.initialised, timeout,
                       "a position estimate")
         # the schedule's origin: the lattice point after the first fix this link heard (0 s when
@@ -146,12 +160,14 @@ class Pilot:
         t_leg = self.t_offboard + LEG_AFTER_S
         timed = self._ask_ahead((t_arm, t_climb, self.t_offboard, t_leg))
         self.registration.register_launch()  # its window ends before t_arm
+        if dialect.guided_before_arming:  # ArduCopter arms and takes off in GUIDED
+            link.set_mode(dialect.guided_mode)
         if timed:
             self._held_at(t_arm, timeout)
         link.arm()
         if timed:
             self._held_at(t_climb, timeout)
-        link.takeoff(link.telemetry.home["alt"] + self.spec.altitude_m)
+        link.takeoff(dialect.takeoff_altitude(link.telemetry.home["alt"], self.spec.altitude_m))
         if timed:
             self._held_at(self.t_offboard, timeout)
             # climbing by then (the last decimetres come slowly; OFFBOARD's setpoint finishes them)

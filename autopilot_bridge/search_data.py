@@ -50,6 +50,9 @@ class SearchSpec:
     #: a border not in view is then evidence the camera is further from it than the frame
     #: reaches (`Registration.register_unseen_edges`). A border seen registers either way
     field_edge: bool = False
+    #: the vehicle's companion-loss failsafe, read before take-off (autopilot_bridge.preflight):
+    #: False refuses a vehicle it would leave flying, True sets the safe values (logged)
+    set_failsafe: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
@@ -82,6 +85,9 @@ class SearchLog:
     #: per decision: the field's borders seen and registered, [axis (0 north, 1 east), side (+1
     #: north / east border), the border's offset from the camera (m)] (autopilot_bridge.edges)
     edges: list[list[list[float]]] = field(default_factory=list)
+    #: what the companion learnt or changed before take-off (the autopilot, stream refusals,
+    #: failsafe parameters set by --set-failsafe), a line each
+    preflight: list[str] = field(default_factory=list)
     #: per decision: whether the position was taken as exact (the believed cell held >= exact_above)
     exact: list[bool] = field(default_factory=list)
     #: per decision: where the map and the view placed the camera (field north, east)

@@ -293,7 +293,7 @@ class PolicyService:
         without telemetry) less a bias, or the posterior mean (see `_camera_ne`)."""
         if here is None or not self.spec.register or not self.spec.map_from_reading:
             return posterior_mean
-        return here + self.intake.home_in_field()[:2] - bias_ned[:2]
+        return here + self.intake.local_origin_in_field()[:2] - bias_ned[:2]
 
     def stop_setpoints(self) -> None:
         """Stop streaming OFFBOARD setpoints (before handing the vehicle to an AUTO mode)."""

@@ -80,11 +80,21 @@ class TelemetryIntake:
 
     # -- frames: field NED (origin = cell (0,0)) vs the autopilot's local NED (origin = home) --
     def home_in_field(self) -> np.ndarray:
+        """Home (HOME_POSITION), the launch point, in the field frame."""
         h = self.link.telemetry.home
         return self.origin.geodetic_to_ned(h["lat"], h["lon"], h["alt"])
 
+    def local_origin_in_field(self) -> np.ndarray:
+        """The origin of the autopilot's local frame (LOCAL_POSITION_NED, the setpoints) in the
+        field frame: GPS_GLOBAL_ORIGIN where the vehicle says it (PX4's and ArduPilot's EKFs
+        set it at their first fix, which need not be home), else home (our SITL's frame)."""
+        o = self.link.telemetry.local_origin
+        if not o:
+            return self.home_in_field()
+        return self.origin.geodetic_to_ned(o["lat"], o["lon"], o["alt"])
+
     def field_to_local(self, ne_field: np.ndarray) -> np.ndarray:
-        off = self.home_in_field()
+        off = self.local_origin_in_field()
         return np.array([ne_field[0] - off[0], ne_field[1] - off[1]])
 
     def _on_message(self, msg: Any) -> None:
@@ -144,7 +154,7 @@ class TelemetryIntake:
         sample = self._sample_at(t)
         if sample is None or self.estimator.time_s is None:
             return False
-        at = np.array([sample[1], sample[2]]) + self.home_in_field()[:2]
+        at = np.array([sample[1], sample[2]]) + self.local_origin_in_field()[:2]
         self.estimator.observe_reading(max(sample[0], self.estimator.time_s), at, sd_m)
         return True
 

@@ -28,6 +28,8 @@ def default_params() -> dict[str, Param]:
         "MPC_Z_VEL_MAX_UP": Param(2.0, 0.5, 5.0, "maximum climb rate (m/s)"),
         "NAV_ACC_RAD": Param(0.4, 0.05, 10.0, "waypoint acceptance radius (m)"),
         "RTL_RETURN_ALT": Param(5.0, 1.0, 100.0, "return altitude above home (m)"),
+        "RTL_LAND_DELAY": Param(0.0, -1.0, 300.0, "Return's delay before landing (s); -1: loiter over home, never "
+                                "land (our vehicle lands after its return whatever it says)"),
         "GF_MAX_HOR_DIST": Param(100.0, 1.0, 10000.0, "geofence: max horizontal distance from home (m)"),
         "GF_MAX_VER_DIST": Param(30.0, 1.0, 1000.0, "geofence: max altitude above home (m)"),
         "COM_OF_LOSS_T": Param(1.0, 0.1, 60.0, "offboard setpoint timeout (s)"),
@@ -55,7 +57,7 @@ def default_params() -> dict[str, Param]:
 
 #: fence and failsafe parameters: refused while armed (a link must not widen the fence or switch
 #: a failsafe off in flight)
-LOCKED_WHEN_ARMED = ("GF_", "COM_", "NAV_DLL_", "BAT_", "SYS_FAILURE_EN", "RTL_RETURN_ALT")
+LOCKED_WHEN_ARMED = ("GF_", "COM_", "NAV_DLL_", "BAT_", "SYS_FAILURE_EN", "RTL_RETURN_ALT", "RTL_LAND_DELAY")
 
 
 class ParamStore:
