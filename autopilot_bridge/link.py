@@ -88,6 +88,9 @@ class Telemetry:
     statustext_log: list[tuple[float, int, str]] = field(default_factory=list)
     autopilot: int | None = None  # HEARTBEAT.autopilot of the vehicle
     ekf_flags: int | None = None  # EKF_STATUS_REPORT.flags (ArduPilot)
+    #: SYS_STATUS onboard_control_sensors_present / _health (PX4's pre-arm check bit among them)
+    sensors_present: int = 0
+    sensors_health: int = 0
     #: GPS_GLOBAL_ORIGIN: the local frame's origin (lat, lon, alt), where the autopilot says it
     local_origin: dict = field(default_factory=dict)
 
@@ -290,6 +293,8 @@ class VehicleLink:
             del t.statustext[:-STATUSTEXT_KEEP]
             t.statustext_log.append((time.monotonic(), msg.severity, msg.text))
             del t.statustext_log[:-STATUSTEXT_KEEP]
+        elif kind == "SYS_STATUS":
+            t.sensors_present, t.sensors_health = msg.onboard_control_sensors_present, msg.onboard_control_sensors_health
         elif kind == "EKF_STATUS_REPORT":
             t.ekf_flags = msg.flags
         elif kind == "GPS_GLOBAL_ORIGIN":
@@ -378,8 +383,18 @@ class VehicleLink:
             wait = min(wait * 1.5, 3.0)
         raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries} tries")
 
-    def arm(self, force: bool = False) -> None:
-        self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196 if force else 0)
+    def arm(self, force: bool = False, retry_s: float = 0.0) -> None:
+        """Arm; a TEMPORARILY_REJECTED (PX4 while a pre-arm check is still settling) is asked
+        again every half second for up to retry_s."""
+        end = time.monotonic() + retry_s
+        while True:
+            try:
+                self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196 if force else 0)
+                return
+            except CommandRejected as e:
+                if e.result != mavlink.MAV_RESULT_TEMPORARILY_REJECTED or time.monotonic() > end:
+                    raise
+                time.sleep(0.5)
 
     def disarm(self, force: bool = False) -> None:
         self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196 if force else 0)

@@ -19,6 +19,7 @@ from .base import Dialect, FailsafeRule
 #: the SITL: no RC, COM_OBL_RC_ACT 0 -> AUTO.RTL) and with RC leave the vehicle to its pilot.
 #: 5 Hold hovers until the battery failsafe; 6 Terminate and 7 Disarm drop it from the sky.
 OBL_SAFE = (0, 1, 2, 3, 4)
+PREARM = mavlink.MAV_SYS_STATUS_PREARM_CHECK
 OBL_NAMES = {0: "Position", 1: "Altitude", 2: "Stabilized", 3: "Return", 4: "Land", 5: "Hold",
              6: "Terminate", 7: "Disarm"}
 
@@ -41,6 +42,15 @@ class PX4(Dialect):
     def set_mode_params(self, name: str) -> tuple[float, float, float]:
         main, sub = px4_modes.encode(name)
         return float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(main), float(sub)
+
+    def not_ready(self, telemetry) -> str | None:
+        """GPS and home, and PX4's own pre-arm checks passed: SYS_STATUS sets the PREARM_CHECK
+        bit in its health mask (not in its present mask) once they pass; arming before that is
+        TEMPORARILY_REJECTED (measured: the SIH's "no heading reference" for ~1 s after its fix)."""
+        missing = super().not_ready(telemetry)
+        if missing is None and not telemetry.sensors_health & PREARM:
+            return "PX4's pre-arm checks (SYS_STATUS health)"
+        return missing
 
     def failsafe_rules(self, companion_sysid: int) -> tuple[FailsafeRule, ...]:
         return (

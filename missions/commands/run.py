@@ -52,10 +52,16 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed"),
         out: Path = typer.Option(Path("out/run"), "--out"),
         tlog: bool = typer.Option(True, "--tlog/--no-tlog", help="Log the link to OUT/companion.tlog."),
+        autopilot: str = typer.Option(
+            "auto", "--autopilot", help="The autopilot's family: px4, ardupilot, or auto (from its HEARTBEAT)."),
+        set_failsafe: bool = typer.Option(
+            False, "--set-failsafe", help="Set the vehicle's companion-loss failsafe to safe values where it would "
+                                          "leave the vehicle flying without this companion (default: refuse to fly)."),
         signing_key_file: Path | None = typer.Option(
             None, "--signing-key-file", help="Sign the link (MAVLink 2): a chmod-600 file with 64 hex chars or a passphrase."),
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
+        from autopilot_bridge.dialects import NAMES as AUTOPILOTS
         from autopilot_bridge.link import VehicleLink
         from autopilot_bridge.service import PolicyService, SearchSpec, save_log
         from missions.fieldfile import FieldFileError, FieldSpec, read_field
@@ -67,6 +73,7 @@ def register(app: typer.Typer) -> None:
         from sim.gridworld import ConfigError, GridConfig
         from sim.gridworld.geodesy import HomePosition
 
+        _check(autopilot.lower() in AUTOPILOTS, autopilot, "--autopilot", f"expected one of {', '.join(AUTOPILOTS)}")
         fs: FieldSpec | None = None
         if field is not None:
             try:
@@ -127,7 +134,8 @@ def register(app: typer.Typer) -> None:
         config = {"connect": address, "field": None if field is None else str(field), "grid": grid.to_dict(),
                   "origin": [origin.lat_deg, origin.lon_deg, origin.alt_m], "policy": pol.name,
                   "checkpoint": None if checkpoint is None else str(checkpoint), "altitude": altitude,
-                  "max_moves": max_moves, "on_abort": on_abort.value, "field_edge": edge}
+                  "max_moves": max_moves, "on_abort": on_abort.value, "field_edge": edge,
+                  "autopilot": autopilot.lower(), "set_failsafe": set_failsafe}
         from missions.keys import KeyFileError, read_signing_key
 
         try:
@@ -136,12 +144,14 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
         config["signing"] = key is not None
         link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
-                           tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key)
+                           tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key,
+                           dialect=autopilot.lower())
         typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
                    f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
         try:
             with FlightProgress(f"search ({pol.name})") as progress:
-                spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge)
+                spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge,
+                                  set_failsafe=set_failsafe)
                 service = PolicyService(link, pol, spec, seed,
                                         on_progress=progress)
                 end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
