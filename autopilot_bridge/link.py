@@ -221,7 +221,8 @@ class VehicleLink:
             t.heartbeat_time = time.monotonic()
             t.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
             t.mode = px4_modes.decode(msg.custom_mode)
-        elif kind == "COMMAND_ACK":
+        elif kind == "COMMAND_ACK" and self.conn.target_component in (0, msg.get_srcComponent()):
+            # the autopilot's (another component's, a camera's, is its sender's: camera/)
             with self._ack_cv:
                 self._acks[msg.command] = msg.result
                 self._ack_cv.notify_all()
@@ -299,6 +300,13 @@ class VehicleLink:
                     return result
             wait = min(wait * 1.5, 3.0)
         raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries} tries")
+
+    def send_command_long(self, target: tuple[int, int], cmd: int, confirmation: int, *params: float) -> None:
+        """One COMMAND_LONG to (system, component), not waited on: for another component of the
+        vehicle (a camera), whose sender waits for that component's own ACK."""
+        p = list(params) + [0.0] * (7 - len(params))
+        with self._send_lock:
+            self.conn.mav.command_long_send(*target, cmd, confirmation, *p)
 
     def arm(self, force: bool = False) -> None:
         self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196 if force else 0)
