@@ -18,7 +18,7 @@ import numpy as np
 
 from sim.gridworld import cell_to_ned
 
-from .camera import FrameSource
+from .camera import CameraNotFound, FrameSource
 from .estimator import GpsEstimator
 from .link import CommandRejected, LinkError, VehicleLink, mavlink
 from .registration import Registration
@@ -194,6 +194,9 @@ class Pilot:
             if e.result != mavlink.MAV_RESULT_UNSUPPORTED:
                 raise
             log.info("no timed captures on this vehicle (%s): take-off on command timing", e)
+            return False
+        except CameraNotFound as e:  # a camera-less vehicle: flown as one without lockstep
+            log.info("%s: take-off on command timing", e)
             return False
         return True
 

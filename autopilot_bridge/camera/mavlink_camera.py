@@ -21,13 +21,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..link import CommandRejected, LinkError, VehicleLink, mavlink
+# the camera protocol's ids (mavutil's default MAVLink 1 dialect lacks them)
+from pymavlink.dialects.v20 import common as mavlink
+
+from ..link import CommandRejected, LinkError, VehicleLink
 from .png import FrameAssembler
 from .source import Stamped
 
 log = logging.getLogger(__name__)
 DISCOVER_TIMEOUT_S = 5.0  # wall seconds a camera has to heartbeat (1 Hz) before it is missing
 INFO_TIMEOUT_S = 2.0  # ... and to send CAMERA_INFORMATION once asked
+#: the vehicle's own clock (its telemetry's time_boot_ms) ran this long on the link with no
+#: camera heartbeat (1 Hz): there is none, said at once rather than after DISCOVER_TIMEOUT_S of
+#: wall time (a camera-less SITL at 40x has flown 200 s by then)
+ABSENT_AFTER_S = 5.0
 #: the component ids MAVLink gives cameras (MAV_COMP_ID_CAMERA .. CAMERA6)
 CAMERA_COMPONENTS = range(mavlink.MAV_COMP_ID_CAMERA, mavlink.MAV_COMP_ID_CAMERA6 + 1)
 
@@ -92,6 +99,8 @@ class MavlinkCamera:
         self._heard: list[tuple[int, int]] = []  # camera components heard, in order
         self._info: dict[tuple[int, int], CameraTarget] = {}
         self._acks: dict[int, int] = {}
+        self._vehicle_t0: float | None = None  # the vehicle's clock (s) when its telemetry was first heard
+        self._absent = False  # that clock ran ABSENT_AFTER_S with no camera heartbeat
         self._closed = False
         link.add_handler(self._on_message)
 
@@ -107,6 +116,16 @@ class MavlinkCamera:
                     self._heard.append(src)
                     self._cv.notify_all()
             return
+        if src[1] not in CAMERA_COMPONENTS and not self._heard and not self._absent:
+            boot_ms = getattr(msg, "time_boot_ms", None)  # the vehicle's clock, while no camera is heard
+            if boot_ms is not None:
+                t = boot_ms * 1e-3
+                if self._vehicle_t0 is None:
+                    self._vehicle_t0 = t
+                elif t - self._vehicle_t0 >= ABSENT_AFTER_S:
+                    with self._cv:
+                        self._absent = True
+                        self._cv.notify_all()
         target = self.target
         if kind == "CAMERA_INFORMATION":
             with self._cv:
@@ -137,20 +156,22 @@ class MavlinkCamera:
         mine = [h for h in self._heard if h[0] == sysid]
         return (mine or self._heard)[0]
 
-    def _not_found(self, timeout_s: float) -> CameraNotFound:
-        return CameraNotFound(f"no MAVLink camera component answered on {self.where} within {timeout_s:g} s: "
-                              "is the camera running? --camera mavlink (on the vehicle's link) or "
-                              "--camera mavlink:ADDRESS (its own)")
+    def _not_found(self) -> CameraNotFound:
+        within = (f"in {ABSENT_AFTER_S:g} s of the vehicle's clock" if self._absent
+                  else f"within {self.discover_timeout_s:g} s")
+        return CameraNotFound(f"no MAVLink camera component answered on {self.where} {within}: is the camera "
+                              "running? --camera mavlink (on the vehicle's link) or --camera mavlink:ADDRESS (its own)")
 
     def _require_target(self) -> CameraTarget:
-        """The camera, waiting for its heartbeat if none has come yet."""
+        """The camera, waiting for its heartbeat if none has come yet; CameraNotFound when none
+        comes within discover_timeout_s, or the vehicle's clock runs ABSENT_AFTER_S without one."""
         if self.target is not None:
             return self.target
         with self._cv:
-            if not self._cv.wait_for(lambda: self._pick() is not None, self.discover_timeout_s):
-                raise self._not_found(self.discover_timeout_s)
+            self._cv.wait_for(lambda: self._pick() is not None or self._absent, self.discover_timeout_s)
             picked = self._pick()
-            assert picked is not None
+            if picked is None:
+                raise self._not_found()
             self.target = self._info.get(picked) or CameraTarget(*picked)
         log.info("camera: %s on %s", self.target.describe(), self.where)
         return self.target
