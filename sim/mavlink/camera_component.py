@@ -1,9 +1,10 @@
 """The simulated downward camera as a MAVLink camera component (camera protocol v2), as a
 drone's camera is: component 100 (MAV_COMP_ID_CAMERA) of the vehicle's system, its own
-HEARTBEAT (MAV_TYPE_CAMERA, MAV_AUTOPILOT_INVALID) at 1 Hz, CAMERA_INFORMATION,
-CAMERA_SETTINGS, CAMERA_CAPTURE_STATUS and VIDEO_STREAM_INFORMATION on request, and its
-frames over MAVLink's image transmission protocol (images.py): a flight controller serves no
-frames (real PX4 answers REQUEST_MESSAGE(DATA_TRANSMISSION_HANDSHAKE) with DENIED).
+HEARTBEAT (MAV_TYPE_CAMERA, MAV_AUTOPILOT_INVALID) at 1 Hz (of simulated time, and at least
+of wall time), CAMERA_INFORMATION, CAMERA_SETTINGS, CAMERA_CAPTURE_STATUS and
+VIDEO_STREAM_INFORMATION on request, and its frames over MAVLink's image transmission
+protocol (images.py): a flight controller serves no frames (real PX4 answers
+REQUEST_MESSAGE(DATA_TRANSMISSION_HANDSHAKE) with DENIED).
 
 Frames: REQUEST_MESSAGE(DATA_TRANSMISSION_HANDSHAKE) asks for one now; its param 2 (ours,
 like PX4's message-specific params), when > 0, for one captured at that simulated time (a
@@ -181,9 +182,26 @@ class CameraComponent(BackgroundRunner):
         self._cache: tuple | None = None  # (wall time, position, PNG bytes, (h, w)) of the last picture
         self._next_frame_t = 0.0
         self._next_hb_t = 0.0
-        self._next_hb_wall = -math.inf
+        self._last_hb_wall = -math.inf
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+
+    @classmethod
+    def on_udp(cls, render: Callable[[], np.ndarray], clock: Callable[[], float], local_port: int,
+               remote_port: int, system_id: int = 1, host: str = "127.0.0.1", bind: str = "0.0.0.0",
+               signing_key: bytes | None = None, **kw) -> CameraComponent:
+        """Standalone: a camera on a UDP endpoint of its own (bound to local_port, sending to
+        host:remote_port and to whoever talks to it), e.g. beside a real autopilot binary;
+        `start()` it. kw: the constructor's other options (info, position, rate_hz, ...)."""
+        from .udp import UdpLink
+
+        link = UdpLink(local_port, remote_port, host=host, system_id=system_id, component_id=M.MAV_COMP_ID_CAMERA,
+                       signing_key=signing_key, bind=bind)
+        try:
+            return cls(render, clock, [link], system_id=system_id, **kw)
+        except BaseException:
+            link.close()
+            raise
 
     # -- what arrives ----------------------------------------------------------------------
     def handle(self, msg: mavlink.MAVLink_message) -> bool:
@@ -337,11 +355,16 @@ class CameraComponent(BackgroundRunner):
         for ahead when its time has come, a frame queued or due."""
         t = self.clock() if t is None else t
         self.t = t
-        if t + 1e-9 >= self._next_hb_t:
-            now = self.wall_clock()
-            self._next_hb_t = (math.floor((t + 1e-9) * HEARTBEAT_HZ) + 1.0) / HEARTBEAT_HZ
-            if now >= self._next_hb_wall:  # not faster than MAX_HEARTBEAT_SPEEDUP x in wall time
-                self._next_hb_wall = now + 1.0 / (HEARTBEAT_HZ * MAX_HEARTBEAT_SPEEDUP)
+        # on the lattice of simulated seconds, and at least once a wall-clock second (a world
+        # whose clock stands still is not a camera gone), never faster than
+        # MAX_HEARTBEAT_SPEEDUP x in wall time
+        now = self.wall_clock()
+        due_sim = t + 1e-9 >= self._next_hb_t
+        if due_sim or now - self._last_hb_wall >= 1.0 / HEARTBEAT_HZ:
+            if due_sim:
+                self._next_hb_t = (math.floor((t + 1e-9) * HEARTBEAT_HZ) + 1.0) / HEARTBEAT_HZ
+            if now - self._last_hb_wall >= 1.0 / (HEARTBEAT_HZ * MAX_HEARTBEAT_SPEEDUP):
+                self._last_hb_wall = now
                 self.send(self.heartbeat())
         if self._timed and t + 1e-9 >= self._timed[0]:
             due = self._timed.pop(0)

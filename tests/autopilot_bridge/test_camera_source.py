@@ -20,7 +20,7 @@ from autopilot_bridge.camera import (
     scheme_of,
 )
 from autopilot_bridge.link import CommandRejected, VehicleLink
-from sim.mavlink import CameraComponent, CameraInfo, Sitl, SitlConfig, UdpLink
+from sim.mavlink import CameraComponent, CameraInfo, Sitl, SitlConfig
 
 CAM = mavlink.MAV_COMP_ID_CAMERA
 
@@ -80,9 +80,8 @@ def test_camera_on_its_own_address() -> None:
     sim_t = [0.0]
     picture = np.full((20, 30, 3), 90, dtype=np.uint8)
     cam_port, companion_port = free_port(), free_port()
-    cam = CameraComponent(render=lambda: picture, clock=lambda: sim_t[0],
-                          links=[UdpLink(cam_port, companion_port, system_id=3, component_id=CAM)], system_id=3,
-                          info=CameraInfo(width=30, height=20, video_uri="rtsp://127.0.0.1:8554/down")).start()
+    cam = CameraComponent.on_udp(lambda: picture, lambda: sim_t[0], cam_port, companion_port, system_id=3,
+                                 info=CameraInfo(width=30, height=20, video_uri="rtsp://127.0.0.1:8554/down")).start()
     vehicle_link = VehicleLink(f"udpin:127.0.0.1:{free_port()}")  # no vehicle there: the camera needs none
     try:
         src = open_source(f"mavlink:udpin:127.0.0.1:{companion_port}", vehicle_link, timeout_s=5.0)
