@@ -36,20 +36,14 @@ class SharedLink:
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
         """One packet to every peer of the link (and into its tlog, as the link's own packets)."""
-        mav, link = self.mav, self.link
+        mav = self.mav
         if mav.signing.sign_outgoing:
             mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp())
             buf = msg.pack(mav)
         else:
             buf = wire.frame(msg, wire.payload(msg), mav.seq, mav.srcSystem, mav.srcComponent)
         mav.seq = (mav.seq + 1) & 0xFF
-        link.stats.sent += 1
-        if link.on_bytes and link.log_outgoing:
-            link.on_bytes(bytes(buf), True)
-        if link._batch is not None:  # the link is gathering one datagram: join it
-            link._batch.append(buf)
-        else:
-            link._sendto_peers(buf)
+        self.link.send_foreign(buf)
 
     def poll(self) -> list[mavlink.MAVLink_message]:
         return []  # the link's owner reads the socket

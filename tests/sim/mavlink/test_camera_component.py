@@ -190,3 +190,20 @@ def test_stamps_are_the_png_text_chunk() -> None:
 
     frame, t = decode_png_stamped(encode_png(np.zeros((4, 4, 3), dtype=np.uint8), 12.25))
     assert frame.shape == (4, 4, 3) and t == 12.25
+
+
+def test_the_camera_signs_on_a_signed_link(sitl_factory) -> None:
+    """Behind the vehicle's router the camera signs with the link's key (a stream of its own):
+    a peer holding the key verifies its packets and its ACKs."""
+    key = bytes(range(32))
+    sitl = sitl_factory(physics="kinematic", camera=True, gcs_link=False, speedup=8.0, signing_key=key)
+    c = Client(sitl.cfg.api_ports[1])
+    c.c.setup_signing(key, sign_outgoing=True)
+    try:
+        hb = c.recv("HEARTBEAT", 5, lambda m: m.get_srcComponent() == CAM)
+        assert hb is not None and hb.get_signed(), "signed, and the signature checked out"
+        ack = c.command(sitl.cfg.sysid, CAM, M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_CAMERA_INFORMATION)
+        assert ack is not None and ack.get_signed() and ack.result == M.MAV_RESULT_ACCEPTED
+        assert c.c.mav.signing.badsig_count == 0
+    finally:
+        c.close()
