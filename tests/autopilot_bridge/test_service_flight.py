@@ -54,7 +54,9 @@ def test_centring_into_the_next_cell_moves_the_search_there() -> None:
     try:
         svc = PolicyService(link, flight_policy("belief", None, grid, 0), SearchSpec(origin=sitl.field_origin, grid=grid))
         link.wait_heartbeat()
-        link.wait_for(lambda: len(svc.intake.local_history) > 5 and svc.intake.has_fixes(), 20, "telemetry")
+        # home too (HOME_POSITION at 0.5 Hz: the first may go out before this link listens)
+        link.wait_for(lambda: len(svc.intake.local_history) > 5 and svc.intake.has_fixes() and bool(link.telemetry.home),
+                      20, "telemetry")
         t = svc.intake.local_history[-1][0]
         svc.intake.fuse_until(t)
         assert svc.intake.fuse_reading(t, READING_SD_M)  # as at every decision: the autopilot's estimate
