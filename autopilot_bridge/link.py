@@ -262,7 +262,8 @@ class VehicleLink:
             t.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
             if self.dialect is not None:
                 t.mode = self.dialect.decode_mode(msg.custom_mode)
-        elif kind == "COMMAND_ACK":
+        elif kind == "COMMAND_ACK" and (self._autopilot_id is None or msg.get_srcComponent() == self._autopilot_id[1]):
+            # the autopilot's (another component's, a camera's, is its sender's: camera/)
             with self._ack_cv:
                 self._acks[msg.command] = msg.result
                 self._ack_cv.notify_all()
@@ -382,6 +383,13 @@ class VehicleLink:
                     return result
             wait = min(wait * 1.5, 3.0)
         raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries} tries")
+
+    def send_command_long(self, target: tuple[int, int], cmd: int, confirmation: int, *params: float) -> None:
+        """One COMMAND_LONG to (system, component), not waited on: for another component of the
+        vehicle (a camera), whose sender waits for that component's own ACK."""
+        p = list(params) + [0.0] * (7 - len(params))
+        with self._send_lock:
+            self.conn.mav.command_long_send(*target, cmd, confirmation, *p)
 
     def arm(self, force: bool = False, retry_s: float = 0.0) -> None:
         """Arm; a TEMPORARILY_REJECTED (PX4 while a pre-arm check is still settling) is asked

@@ -18,8 +18,8 @@ import numpy as np
 
 from sim.gridworld import cell_to_ned
 
+from .camera import CameraNotFound, FrameSource
 from .estimator import GpsEstimator
-from .images import FrameRequester
 from .link import CommandRejected, LinkError, VehicleLink, mavlink
 from .preflight import ensure_failsafe
 from .registration import Registration
@@ -50,7 +50,7 @@ class Pilot:
 
     def __init__(self, link: VehicleLink, spec: SearchSpec, estimator: GpsEstimator,
                  intake: TelemetryIntake, registration: Registration, search_log: SearchLog,
-                 frames: FrameRequester) -> None:
+                 frames: FrameSource) -> None:
         self.link, self.spec, self.estimator, self.frames = link, spec, estimator, frames
         self.intake, self.registration, self.log = intake, registration, search_log
         self._setpoint: np.ndarray | None = None  # local NED (autopilot frame)
@@ -201,6 +201,8 @@ class Pilot:
         """Ask for captures at these simulated instants, long before the clock gets there.
         False when the vehicle has no camera (it answers UNSUPPORTED): then the take-off is
         flown on command timing, as a vehicle without lockstep flies it anyway."""
+        if not self.frames.timed_captures:  # a video source: its frames come as they are taken
+            return False
         try:
             for t in times:
                 self.frames.ask(t)
@@ -208,6 +210,9 @@ class Pilot:
             if e.result != mavlink.MAV_RESULT_UNSUPPORTED:
                 raise
             log.info("no timed captures on this vehicle (%s): take-off on command timing", e)
+            return False
+        except CameraNotFound as e:  # a camera-less vehicle: flown as one without lockstep
+            log.info("%s: take-off on command timing", e)
             return False
         return True
 

@@ -33,11 +33,11 @@ import numpy as np
 from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
 
+from .camera import FrameSource, MavlinkCamera
 from .detector import DetectorConfig, find_blobs
 from .edges import find_edges
 from .estimator import GpsEstimator
 from .found import FoundTargets
-from .images import FrameRequester
 from .link import LinkError, VehicleLink
 from .pilot import DECISION_DEADLINE_S, FRAME_DEADLINE_S, Pilot
 from .probmap import ProbabilisticVisitationMap, cell_probabilities
@@ -61,7 +61,9 @@ class PolicyService:
 
     def __init__(self, link: VehicleLink, policy: Policy, spec: SearchSpec, seed: int = 0,
                  detector: DetectorConfig | None = None, clock: Callable[[], float] = time.monotonic,
-                 on_progress: Callable[[Progress], None] | None = None) -> None:
+                 on_progress: Callable[[Progress], None] | None = None, frames: FrameSource | None = None) -> None:
+        """frames: the camera source (autopilot_bridge.camera.open_source); None, the MAVLink
+        camera component on the vehicle's link."""
         self.link, self.policy, self.spec = link, policy, spec
         self.on_progress = on_progress
         self.det = detector or DetectorConfig(altitude_m=spec.altitude_m)
@@ -69,7 +71,7 @@ class PolicyService:
         self.rng = np.random.default_rng([seed, 0x5E2])
         self.estimator = GpsEstimator()
         self.pmap = ProbabilisticVisitationMap(spec.grid.width, spec.grid.height)
-        self.frames = FrameRequester(link)
+        self.frames: FrameSource = frames if frames is not None else MavlinkCamera(link)
         #: a few camera frames for the operator's report: (move, frame, target channel of I);
         #: the first, those where the detector saw a target (up to KEEP_FRAMES) and the last
         self.kept_frames: list[tuple[int, np.ndarray, list]] = []

@@ -14,6 +14,10 @@ import typer
 from autopilot_bridge.abort import AbortAction
 from missions.commands.options import Dist, Motion
 
+#: wall seconds the camera component has to heartbeat and describe itself (the vehicle may be
+#: starting: `take_off` waits 10 s for its heartbeat too)
+CAMERA_TIMEOUT_S = 10.0
+
 
 def _check(ok: bool, value: object, hint: str, why: str) -> None:
     if not ok:
@@ -57,6 +61,10 @@ def register(app: typer.Typer) -> None:
         set_failsafe: bool = typer.Option(
             False, "--set-failsafe", help="Set the vehicle's companion-loss failsafe to safe values where it would "
                                           "leave the vehicle flying without this companion (default: refuse to fly)."),
+        camera: str = typer.Option(
+            "mavlink", "--camera",
+            help="Where the frames come from: mavlink (the MAVLink camera component on the vehicle's link) or "
+                 "mavlink:ADDRESS (the camera component on its own pymavlink address, e.g. udpin:0.0.0.0:14560)."),
         signing_key_file: Path | None = typer.Option(
             None, "--signing-key-file", help="Sign the link (MAVLink 2): a chmod-600 file with 64 hex chars or a passphrase."),
     ) -> None:
@@ -125,6 +133,12 @@ def register(app: typer.Typer) -> None:
         if port is not None and udp_port_taken(port):
             raise typer.BadParameter(f"UDP port {port} is taken: is another `uavsearch run` connected to this "
                                      "vehicle? Stop it first", param_hint="--connect")
+        from autopilot_bridge.camera import CameraNotFound, CameraSpecError, check_spec, open_source
+
+        try:
+            check_spec(camera)
+        except CameraSpecError as e:
+            raise typer.BadParameter(str(e), param_hint="--camera") from e
         try:  # before anything flies: a policy that cannot serve this field says so now
             pol = flight_policy(policy, checkpoint, grid, seed)
         except PolicyUnfit as e:
@@ -134,7 +148,7 @@ def register(app: typer.Typer) -> None:
         config = {"connect": address, "field": None if field is None else str(field), "grid": grid.to_dict(),
                   "origin": [origin.lat_deg, origin.lon_deg, origin.alt_m], "policy": pol.name,
                   "checkpoint": None if checkpoint is None else str(checkpoint), "altitude": altitude,
-                  "max_moves": max_moves, "on_abort": on_abort.value, "field_edge": edge,
+                  "max_moves": max_moves, "on_abort": on_abort.value, "field_edge": edge, "camera": camera,
                   "autopilot": autopilot.lower(), "set_failsafe": set_failsafe}
         from missions.keys import KeyFileError, read_signing_key
 
@@ -148,15 +162,28 @@ def register(app: typer.Typer) -> None:
                            dialect=autopilot.lower())
         typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
                    f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
+        try:  # the camera before anything flies: none answering is one clear line, nothing armed
+            frames = open_source(camera, link, link_address=address, signing_key=key, timeout_s=CAMERA_TIMEOUT_S,
+                                 tlog=out / "camera.tlog" if tlog and camera != "mavlink" else None)
+        except CameraNotFound as e:
+            link.close()
+            typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(1) from None
+        except BaseException:
+            link.close()
+            raise
+        target = getattr(frames, "target", None)
+        typer.echo(f"camera: {target.describe() if target is not None else camera}")
         try:
             with FlightProgress(f"search ({pol.name})") as progress:
                 spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge,
                                   set_failsafe=set_failsafe)
                 service = PolicyService(link, pol, spec, seed,
-                                        on_progress=progress)
+                                        on_progress=progress, frames=frames)
                 end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
                                      move_timeout_s=move_timeout)
         finally:
+            frames.close()
             link.close()
         log = end.log
         save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed))

@@ -124,6 +124,8 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"    MAVProxy            mavproxy.py --master=udpin:0.0.0.0:{gcs}")
             qgc = "connects by itself (UDP 14550)" if gcs == 14550 else f"add a UDP comm link on port {gcs}"
             typer.echo(f"    QGroundControl      {qgc}")
+            typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on the same links "
+                       "(uavsearch run --camera mavlink)")
             fpath = field_out if count == 1 else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
             write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge),
                         seed + n, sitl=cfg.to_dict())

@@ -1,5 +1,7 @@
 """The SITL vehicle's MAVLink side (PX4 flavour) and the lock-step runner."""
 
+from .camera_component import CameraComponent, CameraInfo
+from .component_link import SharedLink
 from .fleet import SitlFleet
 from .geofence import Geofence
 from .images import encode_png, frame_messages
@@ -10,6 +12,7 @@ from .udp import LinkStats, UdpLink
 from .vehicle import MavlinkVehicle
 
 __all__ = [
-    "Geofence", "LinkStats", "MavlinkVehicle", "Sitl", "SitlConfig", "SitlFleet", "TlogWriter", "UdpLink",
+    "CameraComponent", "CameraInfo", "Geofence", "LinkStats", "MavlinkVehicle", "Sitl", "SitlConfig", "SitlFleet", "SharedLink", "TlogWriter",
+    "UdpLink",
     "encode_png", "frame_messages", "px4_custom_mode", "px4_mode_name",
 ]

@@ -23,8 +23,7 @@ FORCE_MAGIC = 21196  # param 2 of ARM_DISARM: arm/disarm regardless of checks
 #: PX4 stick modes that command attitude or thrust: the FlightModel contract has no such
 #: interface, so they are refused. POSCTL (sticks command velocity) is flown, given sticks.
 ATTITUDE_MODES = frozenset({"MANUAL", "ALTCTL", "ACRO", "STABILIZED"})
-REQUESTABLE = frozenset(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-                                          M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE}
+REQUESTABLE = frozenset(DEFAULT_RATES) | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION}
 HEARTBEAT_MAX_PERIOD_S = 1.0  # a HEARTBEAT interval may not be set longer (MAVLink: 1 Hz nominal)
 MAX_STREAM_HZ = 100.0  # SET_MESSAGE_INTERVAL asking for more gets this
 RELATIVE_FRAMES = frozenset({M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
@@ -190,15 +189,14 @@ def request_message(v: MavlinkVehicle, c: Command) -> Outcome:
     msg_id = c.i(0)
     if not math.isfinite(c.p[0]):
         return M.MAV_RESULT_DENIED
-    if msg_id not in REQUESTABLE or (msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE and v.camera is None):
+    if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
+        # as real PX4: the flight controller serves no camera frames (the camera component,
+        # component 100, does: camera_component.py)
+        return M.MAV_RESULT_DENIED
+    if msg_id not in REQUESTABLE:
         return M.MAV_RESULT_UNSUPPORTED
     if msg_id == M.MAVLINK_MSG_ID_GPS_RAW_INT and v.fix is None:
         return M.MAV_RESULT_TEMPORARILY_REJECTED
-    if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE and c.p[1] > 0:
-        # param 2 (ours, like PX4's message-specific params): capture at this simulated time (s)
-        if not math.isfinite(c.p[1]):
-            return M.MAV_RESULT_DENIED
-        return M.MAV_RESULT_ACCEPTED, lambda: v.capture_at(c.p[1])
     return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(msg_id)
 
 

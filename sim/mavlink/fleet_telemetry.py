@@ -310,8 +310,6 @@ class FleetTelemetry:
                 msg = built[mid][j]  # None: no fix to report (GPS_RAW_INT), as the builder says
             elif mid == M.MAVLINK_MSG_ID_MISSION_CURRENT:
                 msg = v.mission_current()
-            elif mid == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
-                v.queue_frame()  # as send_message: a camera frame goes out on the next tick
             elif (build := BUILDERS.get(mid)) is not None:
                 if snap is None:  # one snapshot for the rest of this vehicle's messages
                     snap = v.snapshot()

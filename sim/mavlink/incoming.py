@@ -1,5 +1,6 @@
 """What the vehicle does with each message that arrives: commands, mission protocol,
-parameters, setpoints, manual control, image requests, TIMESYNC. A mixin of MavlinkVehicle."""
+parameters, setpoints, manual control, TIMESYNC. A mixin of MavlinkVehicle. (Image requests
+are the camera component's: camera_component.py.)"""
 
 from __future__ import annotations
 
@@ -40,11 +41,6 @@ class Incoming:
                 self.send(reply)
         elif kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT"):
             self._on_setpoint(msg)
-        elif kind == "DATA_TRANSMISSION_HANDSHAKE":
-            # the image protocol's own request: a receiver's handshake asks for one frame (we
-            # send PNG whatever type it names, and say so in our handshake)
-            if self.camera is not None:
-                self.queue_frame()
         elif kind == "TIMESYNC" and msg.tc1 == 0:  # a request: answer with our clock (simulated ns)
             self.send(self.mav.timesync_encode(max(int(self.t * 1e9), 1), msg.ts1))
         elif kind == "HEARTBEAT":

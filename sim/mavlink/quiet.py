@@ -73,11 +73,17 @@ class QuietVehicle:
         s = self.model.state
         if (self.mode not in QUIET_MODES or self.fix is None or self.failures or self._velocity_control
                 or self._fence_hold or self._obl_since is not None or self.missions.incoming is not None
-                or self._frame_times or self._pending_frames or self.battery.failed):
+                or self.battery.failed):
             return None
         p = self.params
-        # a GPS fix or telemetry due on a quiet tick is taken or sent by it (QuietFleet.tick)
-        until = self._next_frame_t if p["UAVS_CAM_RATE"] > 0 and self.camera is not None else math.inf
+        # a GPS fix or telemetry due on a quiet tick is taken or sent by it (QuietFleet.tick);
+        # a component's (a camera's heartbeat, a frame) is not: a full tick then
+        until = math.inf
+        for c in self.components:
+            c_until = c.quiet_until()
+            if c_until is None:
+                return None
+            until = min(until, c_until)
         until_wall, floor = math.inf, -math.inf
         if s.armed and not s.landed:  # the failsafes run
             if self.mode == "OFFBOARD":  # stale only once stale in simulated time too (offboard_fresh)

@@ -28,6 +28,8 @@ from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig, GpsModel
 from sim.vehicle.model import FlightModel
 
+from .camera_component import MAV_COMP_ID_CAMERA, CameraComponent, CameraInfo
+from .component_link import SharedLink
 from .geofence import Geofence
 from .runner import BackgroundRunner, pace
 from .tlog import TlogWriter
@@ -50,6 +52,9 @@ class SitlConfig:
     seed: int = 0
     camera: bool | None = None  # None: on for pybullet; on a kinematic body it renders a PyBullet scene of its own
     camera_px: int = 50
+    #: the camera component's video stream (an RTP/H.264 URI served by another process, e.g.
+    #: "udp://127.0.0.1:5600"): carried in VIDEO_STREAM_INFORMATION; None, no video stream
+    camera_video_uri: str | None = None
     #: the paddock's edge: a headland track round the field's grass (`sim.vehicle.field`), which
     #: the companion registers its position on near the borders; False: grass to the horizon
     field_edge: bool = True
@@ -98,6 +103,10 @@ class SitlConfig:
             raise ValueError(f"physics must be 'pybullet' or 'kinematic' (got {self.physics!r})")
         if self.camera is None:
             self.camera = self.physics == "pybullet"
+        if self.camera_video_uri is not None:
+            from .camera_component import CameraInfo
+
+            CameraInfo(video_uri=self.camera_video_uri)  # the same check as the camera's, now
 
     def to_dict(self) -> dict[str, Any]:
         """The config for provenance records; the signing key itself is never written out."""
@@ -154,7 +163,7 @@ class Sitl(BackgroundRunner):
             from sim.vehicle.kinematic import KinematicVehicle
 
             self.model = KinematicVehicle()
-        camera = None
+        has_camera = False
         if cfg.camera:
             from sim.vehicle.camera import DownCamera
             from sim.vehicle.field import Field
@@ -169,7 +178,7 @@ class Sitl(BackgroundRunner):
             self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed,
                                 origin=self.episode.agent[0], edge=cfg.field_edge)
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
-            camera = self._render
+            has_camera = True
         self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None
         sink = self.tlog.write if self.tlog else None
         links = [UdpLink(*cfg.api_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
@@ -182,8 +191,10 @@ class Sitl(BackgroundRunner):
                 links[0].close()
                 raise
         self.gps = GpsModel(self.home, cfg.seed, cfg.gps)
-        self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera, system_id=cfg.sysid,
+        self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, system_id=cfg.sysid,
                                       signing=cfg.signing_key is not None)
+        #: the downward camera: a MAVLink camera component (100) on the vehicle's links
+        self.camera: CameraComponent | None = self._camera_component(links) if has_camera else None
         for name, value in (("GF_MAX_HOR_DIST", cfg.geofence.max_horizontal_m),
                             ("GF_MAX_VER_DIST", cfg.geofence.max_altitude_m)):
             ok, why = self.vehicle.params.set(name, value)
@@ -229,6 +240,25 @@ class Sitl(BackgroundRunner):
     def _render(self, position_ned: np.ndarray, yaw: float) -> np.ndarray:
         self._update_targets()
         return self._cam.render(position_ned, yaw)
+
+    def render_now(self) -> np.ndarray:
+        """What the camera sees now: the field with the targets where they are at self.t."""
+        s = self.model.state
+        return self._render(s.position_ned.copy(), float(s.attitude_rpy[2]))
+
+    def _camera_component(self, links: list[UdpLink]) -> CameraComponent:
+        """The camera as component 100 of the vehicle's system, on the vehicle's own links (as
+        behind a MAVLink router), ticked after the vehicle; its captures asked for ahead hold
+        the clock under companion lockstep, a command to it releases it."""
+        cfg, v = self.cfg, self.vehicle
+        info = CameraInfo(width=cfg.camera_px, height=cfg.camera_px, hfov_deg=self._cam.fov,
+                          video_uri=cfg.camera_video_uri)
+        cam = CameraComponent(self.render_now, lambda: self.t, [SharedLink(link, MAV_COMP_ID_CAMERA) for link in links],
+                              system_id=cfg.sysid, info=info, position=lambda: self.model.state.position_ned.copy(),
+                              rate_hz=lambda: v.params["UAVS_CAM_RATE"], on_command=v.release,
+                              on_decision_point=v.hold)
+        v.components.append(cam)
+        return cam
 
     # -- running -------------------------------------------------------------------------
     def step(self) -> None:

@@ -1,25 +1,18 @@
 """What the vehicle sends of its own accord: telemetry streams at their rates (paced in wall
-time too), requested messages, STATUSTEXT and camera frames. A mixin of MavlinkVehicle."""
+time too), requested messages and STATUSTEXT. A mixin of MavlinkVehicle. (Camera frames come
+from the camera component beside it, camera_component.py: an autopilot serves none.)"""
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
-from .images import encode_png, png_messages
 from .telemetry import BUILDERS, Snapshot
 
 M = mavlink
 STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT
 STATUSTEXT_KEEP = 200  # texts kept in the vehicle's counters (a history, not a leak)
-MAX_PENDING_FRAMES = 2  # frame requests queued beyond this are answered by the frames already queued
-#: a frame asked for again (untimed) within this many wall-clock seconds, the vehicle not having
-#: moved more than FRAME_REUSE_M, is the same picture: resent as is so the receiver can fill its
-#: gaps. A timed capture asked for again is always the picture of its time (see _stream).
-FRAME_REUSE_S = 3.0
-FRAME_REUSE_M = 0.3
 #: telemetry streams run at most this many times their rate in wall-clock time
 MAX_STREAM_SPEEDUP = 50.0
 
@@ -57,21 +50,6 @@ class Streams:
                         link.end_batch()
             else:
                 self._send_due_streams()
-        if self._frame_times and self.t + 1e-9 >= self._frame_times[0]:
-            due = self._frame_times.pop(0)
-            # a capture asked for again (its frame lost on the way) gets the same stamped
-            # picture, so the receiver can fill its gaps; a new time gets a new picture
-            fresh = self._frame_cache_t < due - 1e-6
-            self._fresh_frame = self._fresh_frame or fresh
-            # asked again for a time the cached picture already answers: that picture, however
-            # long ago on the wall clock (a 20 %-lossy link takes several asks of ~2.5 s each; a new
-            # picture every 3 s threw away the chunks the receiver had, and a frame took 16 s)
-            self._resend_timed = self._resend_timed or not fresh
-            self.queue_frame()
-            if self.lockstep and self.camera is not None:  # the companion decides on this frame
-                self.hold_for_companion, self.hold_wall_t = True, self.clock()
-        if self._pending_frames or (self.params["UAVS_CAM_RATE"] > 0 and self.t >= self._next_frame_t):
-            self._send_frame()
 
     def _send_due_streams(self) -> None:
         due = self._due_streams()
@@ -115,12 +93,6 @@ class Streams:
         self._stream_next = soonest
         return due_ids
 
-    def capture_at(self, time_s: float) -> None:
-        """Capture a frame on the first tick at or after simulated time `time_s` (at once if it
-        has passed): a companion that decides on simulated time asks for its frames ahead."""
-        self._frame_times = sorted([*self._frame_times, float(time_s)])[-8:]
-        self.hold_for_companion = False
-
     def snapshot(self) -> Snapshot:
         return Snapshot(self.t, self.model.state, self.estimate(), self.home, self.fix, self.mode, self.sysid,
                         fence_breached=self._fence_hold, battery_ok="battery" not in self.failures)
@@ -131,43 +103,12 @@ class Streams:
         if msg_id == M.MAVLINK_MSG_ID_MISSION_CURRENT:
             self.send_mission_current()
             return True
-        if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
-            self.queue_frame()  # a camera frame goes out on the next tick
-            return True
         build = BUILDERS.get(msg_id)
         msg = build(self.enc, snap or self.snapshot()) if build is not None else None
         if msg is None:
             return False
         self.send(msg)
         return True
-
-    def queue_frame(self) -> None:
-        self._pending_frames = min(self._pending_frames + 1, MAX_PENDING_FRAMES)
-
-    def _send_frame(self) -> None:
-        if self.camera is None:
-            self._pending_frames = 0
-            return
-        s = self.model.state
-        now, pos = self.clock(), s.position_ned.copy()
-        cached = self._frame_cache
-        if (self._pending_frames and not self._fresh_frame and cached is not None
-                and (self._resend_timed or (now - cached[0] <= FRAME_REUSE_S
-                                            and np.linalg.norm(pos - cached[1]) <= FRAME_REUSE_M))):
-            data, (h, w) = cached[2], cached[3]  # the same picture, with its own capture time
-        else:
-            self._fresh_frame = False
-            self._frame_cache_t = self.t
-            frame = self.camera(pos, float(s.attitude_rpy[2]))
-            data, (h, w) = encode_png(frame, self.t), frame.shape[:2]
-            self._frame_cache = (now, pos, data, (h, w))
-        for m in png_messages(self.mav, data, w, h):
-            self.send(m)
-        self._resend_timed = False
-        self.counters.frames_sent += 1
-        self._pending_frames = max(0, self._pending_frames - 1)
-        rate = self.params["UAVS_CAM_RATE"]
-        self._next_frame_t = self.t + (1.0 / rate if rate > 0 else 0.0)
 
 
 def keep(history: list, item: object, n: int) -> None:

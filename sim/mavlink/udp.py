@@ -144,6 +144,18 @@ class UdpLink:
         else:
             self._sendto_peers(bufs[0] if len(bufs) == 1 else b"".join(bufs))
 
+    def send_foreign(self, buf: bytes) -> None:
+        """A packet another component of this system framed with its own numbers (a camera
+        sharing the socket, as behind a MAVLink router: component_link.SharedLink): counted,
+        logged and sent (or batched) as this link's own, its sequence left alone."""
+        self.stats.sent += 1
+        if self.on_bytes and self.log_outgoing:
+            self.on_bytes(bytes(buf), True)
+        if self._batch is not None:
+            self._batch.append(buf)
+        else:
+            self._sendto_peers(buf)
+
     def _sendto_peers(self, buf: bytes) -> None:
         for peer in self.peers:
             try:

@@ -2,10 +2,14 @@
 
 It owns the links and the vehicle's state; its concerns live in mixins: what arrives is
 dispatched in incoming.py (commands.py, mission.py, params.py), the PX4-style modes are flown
-in flying.py through any FlightModel and inside the geofence (geofence.py), and telemetry,
-STATUSTEXT and camera frames go out in streams.py. The flying runs in `tick`, on simulated
-time; timers that wait on a remote client (offboard setpoint loss, mission re-requests) run on
-wall-clock time, because the client does.
+in flying.py through any FlightModel and inside the geofence (geofence.py), and telemetry and
+STATUSTEXT go out in streams.py. The flying runs in `tick`, on simulated time; timers that wait
+on a remote client (offboard setpoint loss, mission re-requests) run on wall-clock time,
+because the client does.
+
+Other components of the same system may share the vehicle's links, as behind a MAVLink router
+(`components`: the camera, camera_component.py): what arrives goes to them first, and what one
+of them takes the autopilot does not answer; they tick after the vehicle.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
@@ -50,6 +55,14 @@ class VehicleCounters:
     statustext: list[str] = field(default_factory=list)
 
 
+class Component(Protocol):
+    """Another component of the vehicle's system on its links (camera_component.CameraComponent)."""
+
+    def handle(self, msg: mavlink.MAVLink_message) -> bool: ...
+    def tick(self, t: float | None = None) -> None: ...
+    def quiet_until(self) -> float | None: ...
+
+
 class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
     def __init__(
         self,
@@ -57,12 +70,13 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         links: list[UdpLink],
         home: HomePosition,
         gps: GpsModel,
-        camera: Callable[[np.ndarray, float], np.ndarray] | None = None,
         system_id: int = 1,
         signing: bool = False,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.model, self.links, self.home, self.gps, self.camera = model, links, home, gps, camera
+        self.model, self.links, self.home, self.gps = model, links, home, gps
+        #: the system's other components behind the same links (as behind a MAVLink router)
+        self.components: list[Component] = []
         self.sysid = system_id
         self.clock = clock  # wall clock, for timers that wait on a client
         self._next_wall: dict[int, float] = {}
@@ -94,15 +108,9 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         self._fence_hold = False  # holding inside after a breach
         self._rtl_phase = 0
         self._wp_reached = -1
-        self._pending_frames = 0
-        self._frame_times: list[float] = []  # simulated times of frames asked for ahead
-        self._fresh_frame = False  # the next frame must be captured anew (a timed capture)
-        self._resend_timed = False  # the next frame answers a timed capture asked for again
-        self._frame_cache_t = -1.0  # simulated time the cached frame was captured at
         self.lockstep = False  # hold time at a companion's decision points (SitlConfig)
         self.hold_for_companion = False
         self.hold_wall_t = 0.0
-        self._frame_cache: tuple | None = None  # (wall time, position, PNG bytes, (h, w)) of the last frame
         self._statustext_id = 0
         self.battery = Battery()
         key = links[0].mav.signing.secret_key if links else None
@@ -110,7 +118,6 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         for link in links if self.signing_guard is not None else []:
             self.signing_guard.install(link.mav)  # one replay table for every link
         self._init_failsafes()
-        self._next_frame_t = 0.0
         #: what the telemetry is built with: wire.ENCODER (payloads without message objects,
         #: the same bytes) unless a link signs, which needs pymavlink's messages
         self.enc = self.mav if self.signing_guard is not None or any(
@@ -186,10 +193,30 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
                 if "mavlink_signal" in self.failures and not _restores_signal(msg):
                     continue  # injected link failure: nothing is heard but the command that ends it
                 try:
-                    self.handle(msg)
+                    if not self._to_components(msg):
+                        self.handle(msg)
                 except Exception as e:  # a well-formed message with absurd content: drop it, fly on
                     keep(self.counters.handler_errors, f"{msg.get_type()}: {type(e).__name__}: {e}", STATUSTEXT_KEEP)
                     log.exception("dropped %s after a handler error", msg.get_type())
+
+    def _to_components(self, msg: mavlink.MAVLink_message) -> bool:
+        """Hand a message to the system's other components; True when one took it (it was
+        addressed to it, or is a broadcast only it answers): the autopilot leaves it alone."""
+        taken = False
+        for c in self.components:
+            taken = c.handle(msg) or taken
+        return taken
+
+    def hold(self) -> None:
+        """Companion lockstep (SitlConfig.companion_lockstep): hold simulated time here, at a
+        decision point (a capture asked for ahead has gone out), until the companion's next
+        command to any component of this system."""
+        if self.lockstep:
+            self.hold_for_companion, self.hold_wall_t = True, self.clock()
+
+    def release(self) -> None:
+        """The companion acts (a command to any component): time runs on."""
+        self.hold_for_companion = False
 
     def tick(self, t: float, serve: bool = True, sampled: bool = False) -> None:
         """One simulated step at time t: answer what arrived (unless the caller just did, as a
@@ -207,6 +234,8 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         self._check_failsafes()
         self._fly()
         self._stream()
+        for c in self.components:  # after this tick's telemetry: a frame of t follows its samples
+            c.tick(t)
         self.missions.poll()
 
     def sample_gps(self, t: float) -> None:

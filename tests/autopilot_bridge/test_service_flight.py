@@ -31,10 +31,16 @@ def test_policy_service_flies_a_search_and_lands(tmp_path: Path) -> None:
     assert set(steps) == {1}, "one grid move per decision"
     assert (tmp_path / "search.png").read_bytes()[:4] == b"\x89PNG"
     tlog = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
-    kinds = set()
+    kinds, frame_from, asks_to = set(), set(), set()
     while (m := tlog.recv_match()) is not None:
         kinds.add(m.get_type())
+        if m.get_type() == "ENCAPSULATED_DATA":
+            frame_from.add(m.get_srcComponent())
+        elif m.get_type() == "COMMAND_LONG" and m.command == mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE and m.param1 == 130:
+            asks_to.add(m.target_component)
     assert {"SET_POSITION_TARGET_LOCAL_NED", "ENCAPSULATED_DATA", "COMMAND_LONG"} <= kinds
+    # the frames came from the camera component on the vehicle's link, asked of it, not of the autopilot
+    assert frame_from == {mavutil.mavlink.MAV_COMP_ID_CAMERA} and asks_to == {mavutil.mavlink.MAV_COMP_ID_CAMERA}
 
 
 def test_centring_into_the_next_cell_moves_the_search_there() -> None:
@@ -48,7 +54,9 @@ def test_centring_into_the_next_cell_moves_the_search_there() -> None:
     try:
         svc = PolicyService(link, flight_policy("belief", None, grid, 0), SearchSpec(origin=sitl.field_origin, grid=grid))
         link.wait_heartbeat()
-        link.wait_for(lambda: len(svc.intake.local_history) > 5 and svc.intake.has_fixes(), 20, "telemetry")
+        # home too (HOME_POSITION at 0.5 Hz: the first may go out before this link listens)
+        link.wait_for(lambda: len(svc.intake.local_history) > 5 and svc.intake.has_fixes() and bool(link.telemetry.home),
+                      20, "telemetry")
         t = svc.intake.local_history[-1][0]
         svc.intake.fuse_until(t)
         assert svc.intake.fuse_reading(t, READING_SD_M)  # as at every decision: the autopilot's estimate

@@ -44,7 +44,8 @@ class GroundStation:
             if m is None:
                 continue
             kind = m.get_type()
-            if kind == "HEARTBEAT" and m.type != M.MAV_TYPE_GCS:
+            # the autopilot's heartbeat (the camera component's, MAV_AUTOPILOT_INVALID, says nothing of the flight)
+            if kind == "HEARTBEAT" and m.type != M.MAV_TYPE_GCS and m.autopilot != M.MAV_AUTOPILOT_INVALID:
                 armed = bool(m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
                 if not s.armed or s.armed[-1] != armed:
                     s.armed.append(armed)

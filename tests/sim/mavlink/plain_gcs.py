@@ -34,18 +34,22 @@ class Gcs:
                 continue
             if m.get_type() == "STATUSTEXT":
                 self.texts.append(m.text)
+            if m.get_type() == "HEARTBEAT" and m.autopilot == M.MAV_AUTOPILOT_INVALID:
+                continue  # another component's (the camera's): the vehicle's state is the autopilot's
             kinds = [kind] if isinstance(kind, str) else kind
             if m.get_type() in kinds and (cond is None or cond(m)):
                 return m
         return None
 
-    def command(self, cmd: int, *params: float, timeout: float = 3.0, tries: int = 3):
-        """COMMAND_LONG, resent with confirmation+1 when no ACK comes, as QGC and MAVSDK do
-        (UDP may drop a datagram on a loaded machine); the vehicle must answer each one."""
+    def command(self, cmd: int, *params: float, timeout: float = 3.0, tries: int = 3, component: int = 1):
+        """COMMAND_LONG to `component` (1: the autopilot), resent with confirmation+1 when no ACK
+        comes, as QGC and MAVSDK do (UDP may drop a datagram on a loaded machine); the vehicle
+        must answer each one, from the component asked."""
         p = list(params) + [0.0] * (7 - len(params))
         for confirmation in range(tries):
-            self.c.mav.command_long_send(self.sysid, 1, cmd, confirmation, *p)
-            ack = self.recv("COMMAND_ACK", timeout / tries, lambda a: a.command == cmd)
+            self.c.mav.command_long_send(self.sysid, component, cmd, confirmation, *p)
+            ack = self.recv("COMMAND_ACK", timeout / tries,
+                            lambda a: a.command == cmd and a.get_srcComponent() == component)
             if ack is not None:
                 return ack
         return None

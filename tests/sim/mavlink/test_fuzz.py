@@ -9,13 +9,14 @@ import time
 
 from plain_gcs import Gcs, M
 
+from sim.mavlink.camera_component import MAX_PENDING_FRAMES
 from sim.mavlink.fuzz import send_fuzz
-from sim.mavlink.streams import MAX_PENDING_FRAMES, STATUSTEXT_KEEP
+from sim.mavlink.streams import STATUSTEXT_KEEP
 from sim.mavlink.udp import MAX_PEERS
 
 
 def test_fuzzed_datagrams_leave_the_vehicle_answering(sitl_factory) -> None:
-    sitl = sitl_factory(physics="kinematic")
+    sitl = sitl_factory(physics="kinematic", camera=True)  # the camera component on the same links is fuzzed too
     port = sitl.cfg.gcs_ports[0]
     for seed in range(4):  # 4 x 1500, from 300 one-shot senders: paced so the socket keeps up
         send_fuzz(port, 1500, seed, sitl.cfg.sysid, per_sender=20)
@@ -29,7 +30,7 @@ def test_fuzzed_datagrams_leave_the_vehicle_answering(sitl_factory) -> None:
     assert not v.counters.handler_errors, v.counters.handler_errors[:5]
     assert not sitl.errors, sitl.errors[:1]
     assert len(v.links[1].peers) <= MAX_PEERS + 1, "one-shot senders do not all become telemetry peers"
-    assert len(v.counters.statustext) <= STATUSTEXT_KEEP and v._pending_frames <= MAX_PENDING_FRAMES
+    assert len(v.counters.statustext) <= STATUSTEXT_KEEP and sitl.camera._pending <= MAX_PENDING_FRAMES
     assert v.links[1].stats.bad_data > 100, "the random and bit-flipped ones were dropped as malformed"
     # ~6000 datagrams, 60 % well-formed over every handled message type: COMMAND_* are ~100 of
     # them; UDP may drop some under load, so ask for half

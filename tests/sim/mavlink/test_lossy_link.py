@@ -198,13 +198,13 @@ def test_long_statustext_goes_out_in_chunks(sitl_factory) -> None:
 
 def test_a_timed_capture_asked_again_later_is_the_same_picture(lossy_sitl) -> None:
     """A lossy link needs several asks for one frame, each ~2.5 s apart (command resends plus
-    the wait): the vehicle must resend the picture of the asked time however late the ask
+    the wait): the camera must resend the picture of the asked time however late the ask
     comes, so the receiver can fill its gaps. It used to render a new picture after 3 wall
     seconds, which threw the gathered chunks away (one frame took 16 s, and a 64-move search
     through 20 % loss failed)."""
     from autopilot_bridge.images import FrameRequester
     from autopilot_bridge.link import VehicleLink
-    from sim.mavlink.streams import FRAME_REUSE_S
+    from sim.mavlink.camera_component import FRAME_REUSE_S
 
     faults = LinkFaults(duplicate=0.05, reorder=0.05, delay_ms=(0.0, 2.0), reorder_ms=10)
     sitl, proxy, port = lossy_sitl(faults, seed=5, physics="kinematic", camera=True, gcs_link=False)

@@ -101,7 +101,7 @@ def test_command_acks_are_honest(sitl_factory) -> None:
         assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 4, 5).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "RTL, on ground"
         assert g.command(M.MAV_CMD_DO_SET_MODE, custom, 6, 0).result == M.MAV_RESULT_TEMPORARILY_REJECTED, "no setpoints"
         handshake = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE)
-        assert handshake.result == M.MAV_RESULT_UNSUPPORTED, "the kinematic airframe has no camera"
+        assert handshake.result == M.MAV_RESULT_DENIED, "a flight controller serves no frames (as real PX4)"
         assert g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == M.MAV_RESULT_ACCEPTED
         av = g.recv("AUTOPILOT_VERSION", 3)
         assert av.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
@@ -232,13 +232,16 @@ def test_camera_frames_over_image_transmission_and_tlog(sitl_factory, tmp_path) 
     g = Gcs(sitl.cfg.gcs_ports[1])
     try:
         asm = FrameAssembler()
-        ack = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE)
-        assert ack.result == M.MAV_RESULT_ACCEPTED
+        # the camera component (100) on the vehicle's link serves the frames; the autopilot does not
+        ack = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE,
+                        component=M.MAV_COMP_ID_CAMERA)
+        assert ack.result == M.MAV_RESULT_ACCEPTED and ack.get_srcComponent() == M.MAV_COMP_ID_CAMERA
         frame = None
         end = time.monotonic() + 5
         while frame is None and time.monotonic() < end:
             m = g.recv(["DATA_TRANSMISSION_HANDSHAKE", "ENCAPSULATED_DATA"], 1)
             if m is not None:
+                assert m.get_srcComponent() == M.MAV_COMP_ID_CAMERA
                 frame = asm.feed(m)
         assert frame is not None and frame.shape == (50, 50, 3)
         assert 60 < frame[..., 1].mean() < 200, "a rendered field, not a blank"
