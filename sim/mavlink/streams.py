@@ -9,7 +9,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
 from .images import encode_png, png_messages
-from .telemetry import BUILDERS, Snapshot
+from .telemetry import Snapshot
 
 M = mavlink
 STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT
@@ -134,7 +134,7 @@ class Streams:
         if msg_id == M.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE:
             self.queue_frame()  # a camera frame goes out on the next tick
             return True
-        build = BUILDERS.get(msg_id)
+        build = self.builders.get(msg_id)  # the dialect's (telemetry.BUILDERS for PX4)
         msg = build(self.enc, snap or self.snapshot()) if build is not None else None
         if msg is None:
             return False
