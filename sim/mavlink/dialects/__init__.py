@@ -74,13 +74,15 @@ class Dialect:
 
 def make_dialect(name: str, **options: Any) -> Dialect:
     """The dialect called `name` (px4 | ardupilot), built with its options."""
-    from .ardupilot import ArduPilot
-    from .px4 import PX4
+    if name == "px4":
+        from .px4 import PX4
 
-    kinds: dict[str, type[Dialect]] = {"px4": PX4, "ardupilot": ArduPilot}
-    if name not in kinds:
-        raise ValueError(f"dialect must be one of {sorted(kinds)} (got {name!r})")
-    return kinds[name](**options)
+        return PX4(**options)
+    if name == "ardupilot":
+        from .ardupilot import ArduPilot
+
+        return ArduPilot(**options)
+    raise ValueError(f"dialect must be one of {', '.join(DIALECTS)} (got {name!r})")
 
 
 DIALECTS = ("px4", "ardupilot")

@@ -64,6 +64,7 @@ GCS_ACTIONS = {0: None, 1: "RTL", 2: "RTL", 3: "SMARTRTL", 4: "SMARTRTL_LAND", 5
 FS_OPT_CONTINUE_IF_AUTO_GCS = 2  # FS_OPTIONS bits (Copter::FailsafeOption)
 FS_OPT_CONTINUE_IF_LANDING = 8
 FS_OPT_CONTINUE_IF_PILOT_CONTROL_GCS = 16
+TIMESYNC_PERIOD_S = 10.0  # GCS_MAVLINK::update_send: a TIMESYNC request every 10 s
 BRAKE_TIMEOUT_S = 2.5  # a failsafe's BRAKE turns LOITER after this (set_mode_brake_or_land_with_pause)
 PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming PREARM_DISPLAY_PERIOD
 #: SET_POSITION_TARGET type-mask groups as ArduCopter reads them: a group is ignored when any of
@@ -154,6 +155,8 @@ class ArduPilot(Dialect):
         self.velocity_heard = (-1e9, -1e9)  # (wall, simulated) time of the last velocity setpoint
         self.prearm_shown_t = 0.0
         self.was_armed = False
+        self.ekf_announced = False  # "EKF3 IMU0 is using GPS", the origin and home sent
+        self.timesync_t = 0.0
 
     # -- the dialect's tables ------------------------------------------------------------
     def default_rates(self) -> dict[int, float]:
@@ -313,6 +316,11 @@ class ArduPilot(Dialect):
         s = v.model.state
         if v.fix is not None:
             self.rtc_set = True
+        if not self.ekf_announced and self.position_ok(v.t, v.fix):
+            self._ekf_ready(v)
+        if v.t - self.timesync_t > TIMESYNC_PERIOD_S:  # a request, as ArduPilot sends for its logs
+            self.timesync_t = v.t
+            v.send(v.mav.timesync_encode(0, max(int(v.t * 1e9), 1)))
         if self.was_armed and not s.armed:
             v.statustext("Disarming motors", M.MAV_SEVERITY_INFO)
         self.was_armed = s.armed
@@ -341,6 +349,15 @@ class ArduPilot(Dialect):
         if v.mode not in ("RTL", "LAND") and not v.fence().allows(v.estimate()):
             self._failsafe(v, "fence breach: RTL", "RTL")
 
+    def _ekf_ready(self, v: Host) -> None:
+        """The EKF takes GPS (AP_NavEKF3_Control: "EKF3 IMU%u is using GPS", one per IMU lane)
+        and sets its origin and home, each sent once unasked (as the real one was seen to)."""
+        self.ekf_announced = True
+        for lane in (0, 1):
+            v.statustext(f"EKF3 IMU{lane} is using GPS", M.MAV_SEVERITY_INFO)
+        v.send_message(M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
+        v.send_message(M.MAVLINK_MSG_ID_HOME_POSITION)
+
     def _auto_disarm(self, v: Host) -> None:
         """Copter::auto_disarm_check: armed on the ground, no take-off under way."""
         delay = v.params["DISARM_DELAY"]
@@ -367,7 +384,8 @@ class ArduPilot(Dialect):
             self.rtl_phase = 2
         elif self.rtl_phase == 2 and math.hypot(p[0], p[1]) < max(v.params["NAV_ACC_RAD"], 0.3):
             self.rtl_phase, self.phase_t = 3, v.t
-        elif self.rtl_phase == 3 and v.t - self.phase_t >= v.params["RTL_LOIT_TIME"] / 1000.0:
+        elif (self.rtl_phase == 3 and v.t - self.phase_t >= v.params["RTL_LOIT_TIME"] / 1000.0
+              and math.hypot(p[0], p[1]) < 0.3):  # over home: the real one descends on it, position-held
             v._target = None
             v.model.land()
             self.rtl_phase = 4

@@ -74,13 +74,16 @@ def test_unasked_it_sends_heartbeats_only_until_a_stream_is_asked_for(sitl_facto
         assert (hb.autopilot, hb.type, hb.custom_mode) == (M.MAV_AUTOPILOT_ARDUPILOTMEGA, M.MAV_TYPE_QUADROTOR,
                                                           MODES["STABILIZE"])
         assert hb.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED and not hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
-        seen = set()
-        end = time.monotonic() + 1.5  # 9 simulated seconds at 6x
+        seen: dict[str, int] = {}
+        end = time.monotonic() + 2.5  # 15 simulated seconds at 6x
         while time.monotonic() < end:
             m = g.c.recv_match(blocking=True, timeout=0.2)
             if m is not None:
-                seen.add(m.get_type())
-        assert seen <= {"HEARTBEAT", "STATUSTEXT"}, seen
+                seen[m.get_type()] = seen.get(m.get_type(), 0) + 1
+        # as the real one: heartbeats, a TIMESYNC request every 10 s, the EKF origin and home once
+        assert set(seen) <= {"HEARTBEAT", "STATUSTEXT", "TIMESYNC", "GPS_GLOBAL_ORIGIN", "HOME_POSITION"}, seen
+        assert seen["HEARTBEAT"] >= 10 and seen.get("TIMESYNC", 0) >= 1, seen
+        assert seen.get("GPS_GLOBAL_ORIGIN", 0) <= 1 and seen.get("HOME_POSITION", 0) <= 1, seen
         # one message by SET_MESSAGE_INTERVAL
         ack = g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 100_000)
         assert ack.result == M.MAV_RESULT_ACCEPTED
@@ -238,7 +241,8 @@ def test_the_gcs_failsafe_fires_when_sysid_mygcs_falls_silent(sitl_factory, enab
                       and m.system_status == M.MAV_STATE_CRITICAL) is not None
         assert _until(lambda: not sitl.model.state.armed, 25), "landed (RTL: at home) and disarmed"
         if mode == "RTL":
-            assert math.hypot(*sitl.vehicle.estimate()[:2]) < 1.0
+            # over home in the estimate when it began to descend; the GPS bias drifts during the descent
+            assert math.hypot(*sitl.model.state.position_ned[:2]) < 2.0, sitl.model.state.position_ned
     finally:
         stop_mine.set()
         stop_other.set()
@@ -261,3 +265,32 @@ def test_mode_numbers_round_trip(sitl_factory) -> None:
         assert _until(lambda: "No such mode 99" in sitl.vehicle.counters.statustext, 2)
     finally:
         g.close()
+
+
+def test_sitl_dialect_option_is_recorded_in_the_field_file(tmp_path) -> None:
+    """`uavsearch sitl --dialect ardupilot` writes "dialect" into the field file; a file from
+    before dialects reads as px4; the two lists of dialect names agree."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from missions.cli import app
+    from missions.fieldfile import DIALECTS as FIELD_DIALECTS
+    from missions.fieldfile import FieldFileError, read_field
+    from sim.mavlink.dialects import DIALECTS
+
+    assert FIELD_DIALECTS == DIALECTS
+    out = tmp_path / "f.json"
+    r = CliRunner().invoke(app, ["sitl", "--instance", "37", "--physics", "kinematic", "--speedup", "0",
+                                 "--duration", "1", "--dialect", "ardupilot", "--field-out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "ardupilot" in r.output and "udpin://0.0.0.0:14577" in r.output, "the same ports as px4"
+    d = json.loads(out.read_text())
+    assert d["dialect"] == "ardupilot" and d["provenance"]["sitl"]["dialect"] == "ardupilot"
+    assert read_field(out).dialect == "ardupilot"
+    del d["dialect"]
+    out.write_text(json.dumps(d))
+    assert read_field(out).dialect == "px4", "old files read as px4"
+    out.write_text(json.dumps({**d, "dialect": "apm"}))
+    with pytest.raises(FieldFileError, match="dialect"):
+        read_field(out)
