@@ -42,21 +42,18 @@ from ..commands import RELATIVE_FRAMES, Command
 from ..host import Host
 from ..params import Param, ParamStore, default_params
 from . import Dialect
+from .ardupilot_commands import execute
+from .ardupilot_modes import (
+    AUTOPILOT_MODES,
+    MODES,
+    NAMES,
+    OTHER_MODES,
+    REQUIRES_GPS,
+    STICK_MODES,
+)
 from .ardupilot_telemetry import Builders
 
 M = mavlink
-#: the modes flown here, by name and number (ArduCopter/mode.h)
-MODES = {"STABILIZE": 0, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
-NAMES = {n: name for name, n in MODES.items()}
-#: ArduCopter's other modes, known by number but not flown here
-OTHER_MODES = {1: "ACRO", 7: "CIRCLE", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE", 16: "POSHOLD",
-               18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS", 21: "SMART_RTL", 22: "FLOWHOLD", 23: "FOLLOW",
-               24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE", 27: "AUTO_RTL", 28: "TURTLE"}
-REQUIRES_GPS = frozenset({"AUTO", "GUIDED", "LOITER", "RTL", "BRAKE"})  # Mode::requires_GPS
-ARMABLE = frozenset({"STABILIZE", "ALT_HOLD", "GUIDED", "LOITER"})  # Mode::allows_arming (from a GCS)
-AUTOPILOT_MODES = frozenset({"AUTO", "GUIDED", "RTL", "LAND"})  # Mode::is_autopilot
-USER_TAKEOFF = frozenset({"GUIDED", "LOITER"})  # Mode::has_user_takeoff(must_navigate=true)
-STICK_MODES = frozenset({"STABILIZE", "ALT_HOLD"})  # manual attitude/throttle: no sticks here
 #: FS_GCS_ENABLE -> FailsafeAction (defines.h FS_GCS_*, Copter::failsafe_gcs_on_event); an
 #: invalid value falls back to RTL, as there
 GCS_ACTIONS = {0: None, 1: "RTL", 2: "RTL", 3: "SMARTRTL", 4: "SMARTRTL_LAND", 5: "LAND", 6: "AUTO_DO_LAND_START",
@@ -171,8 +168,6 @@ class ArduPilot(Dialect):
         return MODES[mode]
 
     def execute(self, v: Host, c: Command) -> tuple[int, Callable[[], object] | None]:
-        from .ardupilot_commands import execute
-
         return execute(self, v, c)
 
     # -- state the checks read -----------------------------------------------------------

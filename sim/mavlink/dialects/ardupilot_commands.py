@@ -9,17 +9,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
 from ..commands import Command
 from ..host import Host
-from .ardupilot import ARMABLE, REQUIRES_GPS, USER_TAKEOFF
-
-if TYPE_CHECKING:
-    from .ardupilot import ArduPilot
+from .ardupilot_modes import ARMABLE, MODES, REQUIRES_GPS, USER_TAKEOFF, CopterState
 
 M = mavlink
 FORCE_ARM = 2989.0  # GCS_MAVLINK::magic_force_arm_value
@@ -28,7 +24,7 @@ Then = Callable[[], object] | None
 Outcome = int | tuple[int, Then]
 
 
-def arm_disarm(d: ArduPilot, v: Host, c: Command) -> Outcome:
+def arm_disarm(d: CopterState, v: Host, c: Command) -> Outcome:
     """GCS_MAVLINK::handle_command_component_arm_disarm and AP_Arming_Copter::arm: every
     failed check is said as "Arm: ..." (running_arming_checks), the ACK is FAILED."""
     s = v.model.state
@@ -63,7 +59,7 @@ def arm_disarm(d: ArduPilot, v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_UNSUPPORTED
 
 
-def do_set_mode(d: ArduPilot, v: Host, c: Command) -> Outcome:
+def do_set_mode(d: CopterState, v: Host, c: Command) -> Outcome:
     """GCS_MAVLINK::_set_mode_common: param1 base mode (CUSTOM_MODE_ENABLED), param2 the mode."""
     if not (math.isfinite(c.p[0]) and math.isfinite(c.p[1])):
         return M.MAV_RESULT_DENIED
@@ -72,7 +68,7 @@ def do_set_mode(d: ArduPilot, v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_DENIED  # only custom modes ("no easy mapping from MAVLink flight modes")
 
 
-def nav_takeoff(d: ArduPilot, v: Host, c: Command) -> Outcome:
+def nav_takeoff(d: CopterState, v: Host, c: Command) -> Outcome:
     """handle_MAV_CMD_NAV_TAKEOFF and Mode::do_user_takeoff: param7 metres above home, in
     GUIDED (or LOITER), armed and on the ground, above where it is."""
     if c.is_int and c.frame not in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
@@ -87,17 +83,15 @@ def nav_takeoff(d: ArduPilot, v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def to_mode(name: str) -> Callable[[ArduPilot, Host, Command], Outcome]:
+def to_mode(name: str) -> Callable[[CopterState, Host, Command], Outcome]:
     """NAV_LAND -> LAND, NAV_RETURN_TO_LAUNCH -> RTL, NAV_LOITER_UNLIM -> LOITER: set_mode or FAILED."""
-    from .ardupilot import MODES
-
-    def run(d: ArduPilot, v: Host, c: Command) -> Outcome:
+    def run(d: CopterState, v: Host, c: Command) -> Outcome:
         return d.change_mode(v, MODES[name])
 
     return run
 
 
-def do_change_speed(d: ArduPilot, v: Host, c: Command) -> Outcome:
+def do_change_speed(d: CopterState, v: Host, c: Command) -> Outcome:
     """handle_MAV_CMD_DO_CHANGE_SPEED: param2 m/s > 0 (here: the target now flown, at that speed)."""
     if not (math.isfinite(c.p[1]) and c.p[1] > 0):
         return M.MAV_RESULT_FAILED
@@ -105,7 +99,7 @@ def do_change_speed(d: ArduPilot, v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def set_message_interval(d: ArduPilot, v: Host, c: Command) -> Outcome:
+def set_message_interval(d: CopterState, v: Host, c: Command) -> Outcome:
     """GCS_MAVLINK::set_message_interval: param2 interval in us; 0 the default (none for what
     is not streamed by default), -1 stop. A message it has no ap_message for is DENIED."""
     if not (math.isfinite(c.p[0]) and math.isfinite(c.p[1])):
@@ -124,7 +118,7 @@ def set_message_interval(d: ArduPilot, v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def request_message(d: ArduPilot, v: Host, c: Command) -> Outcome:
+def request_message(d: CopterState, v: Host, c: Command) -> Outcome:
     """GCS_MAVLINK::handle_command_request_message: ACCEPTED and queued, FAILED for a message
     it has no ap_message for. (DATA_TRANSMISSION_HANDSHAKE: our camera's frames, which no real
     autopilot serves, go out as under PX4 so the companion's frame path keeps working.)"""
@@ -142,16 +136,16 @@ def request_message(d: ArduPilot, v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(msg_id)
 
 
-def send_after(msg_id: int) -> Callable[[ArduPilot, Host, Command], Outcome]:
+def send_after(msg_id: int) -> Callable[[CopterState, Host, Command], Outcome]:
     """MAV_CMD_GET_HOME_POSITION, MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: ACCEPTED, then the message."""
 
-    def run(d: ArduPilot, v: Host, c: Command) -> Outcome:
+    def run(d: CopterState, v: Host, c: Command) -> Outcome:
         return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(msg_id)
 
     return run
 
 
-HANDLERS: dict[int, Callable[[ArduPilot, Host, Command], Outcome]] = {
+HANDLERS: dict[int, Callable[[CopterState, Host, Command], Outcome]] = {
     M.MAV_CMD_COMPONENT_ARM_DISARM: arm_disarm,
     M.MAV_CMD_DO_SET_MODE: do_set_mode,
     M.MAV_CMD_NAV_TAKEOFF: nav_takeoff,
@@ -166,7 +160,7 @@ HANDLERS: dict[int, Callable[[ArduPilot, Host, Command], Outcome]] = {
 }
 
 
-def execute(d: ArduPilot, v: Host, c: Command) -> tuple[int, Then]:
+def execute(d: CopterState, v: Host, c: Command) -> tuple[int, Then]:
     handler = HANDLERS.get(c.id)
     if handler is None:
         return M.MAV_RESULT_UNSUPPORTED, None

@@ -23,7 +23,7 @@ BATTERY_STATUS, EXTENDED_SYS_STATE, HOME_POSITION) are telemetry.py's, on the sa
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as apm
 from pymavlink.dialects.v20 import common as mavlink
@@ -32,9 +32,7 @@ from sim.vehicle.geo import to_e7
 
 from .. import telemetry
 from ..telemetry import Snapshot
-
-if TYPE_CHECKING:
-    from .ardupilot import ArduPilot
+from .ardupilot_modes import CopterState
 
 M = mavlink
 #: EKF_STATUS_REPORT flags (ardupilotmega EKF_STATUS_FLAGS)
@@ -53,7 +51,7 @@ GUIDED_FLAG_MODES = frozenset({"AUTO", "RTL", "LOITER", "GUIDED", "BRAKE"})
 class Builders:
     """The message builders of one ArduPilot vehicle (they read its dialect's state)."""
 
-    def __init__(self, d: ArduPilot) -> None:
+    def __init__(self, d: CopterState) -> None:
         self.d = d
 
     def table(self) -> dict[int, Any]:
@@ -107,8 +105,9 @@ class Builders:
         if not self.d.position_ok(x.t, x.fix):
             return None  # no origin yet: nothing to send
         h = x.home
+        # time_usec: the boot time it is sent at (the real one's read 41659163 asked at ~41.6 s)
         return enc.gps_global_origin_encode(to_e7(h.lat_deg), to_e7(h.lon_deg), int(h.alt_m * 1000),
-                                            self.d.unix_usec(self.d.ekf_delay_s))
+                                            int(x.t * 1e6))
 
     def home_position(self, enc: Any, x: Snapshot) -> Any:
         return telemetry.home_position(enc, x) if self.d.position_ok(x.t, x.fix) else None

@@ -13,7 +13,7 @@ import pytest
 from plain_gcs import Gcs, M
 from pymavlink.dialects.v20 import ardupilotmega as apm
 
-from sim.mavlink.dialects.ardupilot import MODES, NAMES
+from sim.mavlink.dialects.ardupilot_modes import MODES, NAMES
 
 POSITION_ONLY = 0x0DF8  # 3576: velocity, acceleration, yaw and yaw rate ignored
 
@@ -294,3 +294,23 @@ def test_sitl_dialect_option_is_recorded_in_the_field_file(tmp_path) -> None:
     out.write_text(json.dumps({**d, "dialect": "apm"}))
     with pytest.raises(FieldFileError, match="dialect"):
         read_field(out)
+
+
+def test_a_fleet_of_ardupilot_vehicles_ticks_each_in_full() -> None:
+    """`sitl --count N --dialect ardupilot`: quiet ticks and vectorised telemetry are PX4's, so
+    each ArduPilot vehicle takes its full tick and builds its own HEARTBEAT."""
+    from udp_ports import free_udp_port
+
+    from sim.mavlink import SitlConfig, SitlFleet
+
+    cfgs = [SitlConfig(instance=i, dialect="ardupilot", physics="kinematic", camera=False, speedup=0,
+                       api_local_port=free_udp_port(), api_remote_port=free_udp_port(), gcs_link=False)
+            for i in range(2)]
+    fleet = SitlFleet(cfgs)
+    try:
+        fleet.run(duration=4.0)
+        assert not fleet.errors and all(not s.errors for s in fleet.sitls)
+        assert fleet.quiet.quiet_ticks == 0
+        assert all(s.vehicle.dialect.ekf_announced and s.vehicle.mode == "STABILIZE" for s in fleet.sitls)
+    finally:
+        fleet.stop()
