@@ -62,7 +62,8 @@ FS_OPT_CONTINUE_IF_AUTO_GCS = 2  # FS_OPTIONS bits (Copter::FailsafeOption)
 FS_OPT_CONTINUE_IF_LANDING = 8
 FS_OPT_CONTINUE_IF_PILOT_CONTROL_GCS = 16
 TIMESYNC_PERIOD_S = 10.0  # GCS_MAVLINK::update_send: a TIMESYNC request every 10 s
-BRAKE_TIMEOUT_S = 2.5  # a failsafe's BRAKE turns LOITER after this (set_mode_brake_or_land_with_pause)
+BRAKE_TIMEOUT_S = 2.5
+ATTITUDE_FRACTION = 0.6  # of ekf_delay_s: when the attitude is ready (25 of 41 s in the real SITL)  # a failsafe's BRAKE turns LOITER after this (set_mode_brake_or_land_with_pause)
 PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming PREARM_DISPLAY_PERIOD
 #: SET_POSITION_TARGET type-mask groups as ArduCopter reads them: a group is ignored when any of
 #: its bits is set (MAVLINK_SET_POS_TYPE_MASK_* in GCS_Mavlink.cpp)
@@ -174,6 +175,12 @@ class ArduPilot(Dialect):
     def position_ok(self, t: float, fix: GpsFix | None) -> bool:
         """The EKF has an absolute horizontal position (Copter::position_ok)."""
         return fix is not None and t >= self.ekf_delay_s
+
+    def attitude_ok(self, t: float) -> bool:
+        """The inertial sensors and the EKF's attitude have settled: a mode needing no position
+        may arm (the real SITL armed in STABILIZE from ~25 s, its position came at ~41 s; before,
+        "Arm: Accels inconsistent", "Arm: EKF attitude is bad", "Arm: Gyros inconsistent")."""
+        return t >= ATTITUDE_FRACTION * self.ekf_delay_s
 
     def unix_usec(self, t: float) -> int:
         return int((self.unix0 + t) * 1e6) if self.rtc_set else 0

@@ -37,8 +37,10 @@ def arm_disarm(d: CopterState, v: Host, c: Command) -> Outcome:
                 failed.append("FS_GCS_ENABLE=2 removed, see FS_OPTIONS")  # parameter_checks
             if d.gcs_failsafe:
                 failed.append("GCS failsafe on")  # gcs_failsafe_check
-            if not d.position_ok(v.t, v.fix):  # mandatory_gps_checks
-                failed.append("Need Position Estimate" if v.mode in REQUIRES_GPS else "AHRS: Not healthy")
+            if v.mode in REQUIRES_GPS and not d.position_ok(v.t, v.fix):  # mandatory_gps_checks
+                failed.append("Need Position Estimate")
+            elif not d.attitude_ok(v.t):  # the inertial sensors and the EKF's attitude settling
+                failed.append("EKF attitude is bad")
             if not failed and v.mode not in ARMABLE:  # arm_checks run only after the pre-arm checks pass
                 failed.append(f"{v.mode} mode not armable")
             if failed:

@@ -314,3 +314,37 @@ def test_a_fleet_of_ardupilot_vehicles_ticks_each_in_full() -> None:
         assert all(s.vehicle.dialect.ekf_announced and s.vehicle.mode == "STABILIZE" for s in fleet.sitls)
     finally:
         fleet.stop()
+
+
+def test_arming_checks_on_simulated_time() -> None:
+    """Stepped by hand (no thread, no client): STABILIZE arms once the attitude has settled
+    (0.6 x ekf_delay_s), GUIDED once the EKF has its position; each refusal says why."""
+    from udp_ports import free_udp_port
+
+    from sim.mavlink import Sitl, SitlConfig
+    from sim.mavlink.commands import Command
+
+    sitl = Sitl(SitlConfig(dialect="ardupilot", physics="kinematic", camera=False, ekf_delay_s=10.0,
+                           api_local_port=free_udp_port(), api_remote_port=free_udp_port(), gcs_link=False))
+    v, arm, disarm = sitl.vehicle, Command(M.MAV_CMD_COMPONENT_ARM_DISARM, (1, 0, 0, 0, 0, 0, 0)), Command(
+        M.MAV_CMD_COMPONENT_ARM_DISARM, (0, 0, 0, 0, 0, 0, 0))
+    try:
+        while sitl.t < 2.0:
+            sitl.step()
+        assert v.mode == "STABILIZE" and v.fix is not None
+        assert v.dialect.execute(v, arm)[0] == M.MAV_RESULT_FAILED
+        assert v.counters.statustext[-1] == "Arm: EKF attitude is bad"
+        while sitl.t < 6.1:
+            sitl.step()
+        assert v.dialect.execute(v, arm)[0] == M.MAV_RESULT_ACCEPTED, v.counters.statustext[-3:]
+        assert v.dialect.execute(v, disarm)[0] == M.MAV_RESULT_ACCEPTED
+        assert v.dialect.change_mode(v, MODES["GUIDED"]) == M.MAV_RESULT_ACCEPTED
+        assert v.dialect.execute(v, arm)[0] == M.MAV_RESULT_FAILED
+        assert v.counters.statustext[-1] == "Arm: Need Position Estimate"
+        while sitl.t < 10.1:
+            sitl.step()
+        assert "EKF3 IMU0 is using GPS" in v.counters.statustext
+        assert v.dialect.execute(v, arm)[0] == M.MAV_RESULT_ACCEPTED
+        assert v.dialect.change_mode(v, MODES["BRAKE"]) == M.MAV_RESULT_ACCEPTED
+    finally:
+        sitl._close()
