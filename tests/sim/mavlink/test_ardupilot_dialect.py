@@ -20,6 +20,7 @@ POSITION_ONLY = 0x0DF8  # 3576: velocity, acceleration, yaw and yaw rate ignored
 
 def _ap(sitl_factory, **kw):
     kw.setdefault("ekf_delay_s", 1.0)
+    kw.setdefault("speedup", 10.0)
     sitl = sitl_factory(dialect="ardupilot", physics="kinematic", camera=False, **kw)
     return sitl, Gcs(sitl.cfg.gcs_ports[1])
 
@@ -44,8 +45,10 @@ def _mode(g: Gcs, name: str) -> int:
     return g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, MODES[name]).result
 
 
-def _ready(g: Gcs, sitl) -> None:
-    """GUIDED, the EKF ready, armed."""
+def _ready(g: Gcs, sitl, disarm_delay: float = 0.0) -> None:
+    """GUIDED, the EKF ready, armed. disarm_delay: DISARM_DELAY (0: off, so a loaded machine's
+    slow test cannot be disarmed on the ground between arming and NAV_TAKEOFF; 10 by default)."""
+    assert _set_param(g, "DISARM_DELAY", disarm_delay).param_value == disarm_delay
     assert _mode(g, "GUIDED") == M.MAV_RESULT_ACCEPTED
     assert _until(lambda: sitl.vehicle.dialect.position_ok(sitl.vehicle.t, sitl.vehicle.fix), 5)
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
@@ -75,7 +78,7 @@ def test_unasked_it_sends_heartbeats_only_until_a_stream_is_asked_for(sitl_facto
                                                           MODES["STABILIZE"])
         assert hb.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED and not hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
         seen: dict[str, int] = {}
-        end = time.monotonic() + 2.5  # 15 simulated seconds at 6x
+        end = time.monotonic() + 1.6  # 16 simulated seconds at 10x
         while time.monotonic() < end:
             m = g.c.recv_match(blocking=True, timeout=0.2)
             if m is not None:
@@ -111,7 +114,7 @@ def test_unasked_it_sends_heartbeats_only_until_a_stream_is_asked_for(sitl_facto
 
 
 def test_arming_waits_for_the_ekf_position_and_says_why(sitl_factory) -> None:
-    sitl, g = _ap(sitl_factory, ekf_delay_s=12.0)  # 2 s of wall time at 6x
+    sitl, g = _ap(sitl_factory, ekf_delay_s=15.0)  # 1.5 s of wall time at 10x
     try:
         assert _mode(g, "GUIDED") == M.MAV_RESULT_ACCEPTED, "any mode while disarmed"
         g.c.mav.request_data_stream_send(g.sysid, 1, M.MAV_DATA_STREAM_EXTRA3, 4, 1)
@@ -139,7 +142,6 @@ def test_guided_take_off_setpoints_land_and_disarm(sitl_factory) -> None:
     try:
         _ready(g, sitl)
         assert _until(lambda: "Arming motors" in sitl.vehicle.counters.statustext, 1)
-        # (quickly: armed on the ground, it disarms after DISARM_DELAY, 10 s: 1.7 s of wall time)
         # setpoints on the ground fly nothing: GUIDED takes off only on NAV_TAKEOFF
         _setpoint(g, 0, 0, -3)
         time.sleep(0.3)
@@ -167,8 +169,7 @@ def test_guided_take_off_setpoints_land_and_disarm(sitl_factory) -> None:
 def test_armed_on_the_ground_it_disarms_after_disarm_delay(sitl_factory) -> None:
     sitl, g = _ap(sitl_factory)
     try:
-        assert _set_param(g, "DISARM_DELAY", 3).param_value == 3
-        _ready(g, sitl)
+        _ready(g, sitl, disarm_delay=3)
         t0 = sitl.vehicle.t
         assert _until(lambda: not sitl.model.state.armed, 5)
         assert sitl.vehicle.t - t0 >= 2.9
@@ -204,7 +205,7 @@ def test_guided_holds_forever_when_setpoints_and_the_gcs_stop_with_fs_gcs_disabl
         assert _until(lambda: _near(sitl, 4, -3, -4), 10)
         stop.set()  # the companion dies: no setpoints, no heartbeats
         beat.join()
-        time.sleep(3.5)  # > FS_GCS_TIMEOUT of wall time, 21 simulated seconds
+        time.sleep(2.5)  # > FS_GCS_TIMEOUT of wall time, 25 simulated seconds
         assert sitl.vehicle.mode == "GUIDED" and sitl.model.state.armed and not sitl.model.state.landed
         assert _near(sitl, 4, -3, -4), "held the last target"
         assert not sitl.vehicle.failsafe_log
@@ -224,6 +225,7 @@ def test_the_gcs_failsafe_fires_when_sysid_mygcs_falls_silent(sitl_factory, enab
         assert _set_param(g, "FS_GCS_ENABLE", enable).param_value == enable
         assert _set_param(g, "FS_GCS_TIMEOUT", 2).param_value == 2
         assert _set_param(g, "RTL_LOIT_TIME", 1000).param_value == 1000  # ms over home before landing (5000)
+        assert _set_param(g, "RTL_ALT", 500).param_value == 500  # cm (1500): a shorter climb and descent
         mine = _heartbeats(g, stop_mine)  # system 255: SYSID_MYGCS
         _heartbeats(g, stop_other, sysid=200)  # another GCS: never feeds the failsafe
         _airborne(g, sitl)
