@@ -93,6 +93,39 @@ def to_mode(name: str) -> Callable[[CopterState, Host, Command], Outcome]:
     return run
 
 
+GLOBAL_ALT_FRAMES = frozenset({M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_INT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                               M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
+
+
+def do_reposition(d: CopterState, v: Host, c: Command) -> Outcome:
+    """handle_command_int_do_reposition: COMMAND_INT only (COMMAND_LONG has no frame for it:
+    UNSUPPORTED, as the real one answered); in GUIDED, or switching to it with
+    MAV_DO_REPOSITION_FLAGS_CHANGE_MODE (param2 bit 0); lat/lon (x, y 1e7) and alt (z, by the
+    frame) required; flown at once when airborne."""
+    if not c.is_int:
+        return M.MAV_RESULT_UNSUPPORTED
+    change_mode = math.isfinite(c.p[1]) and int(c.p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+    if v.mode != "GUIDED" and not change_mode:
+        return M.MAV_RESULT_DENIED
+    lat, lon = c.lat_lon()
+    if (not (abs(lat) <= 90 and abs(lon) <= 180) or (c.p[4] == 0 and c.p[5] == 0)
+            or c.frame not in GLOBAL_ALT_FRAMES or not math.isfinite(c.p[6])):
+        return M.MAV_RESULT_DENIED  # check_latlng, location_from_command_t, Location::sanitize
+    ne = v.home.geodetic_to_ned(lat, lon, v.home.alt_m)
+    ned = np.array([ne[0], ne[1], -c.rel_alt(v.home.alt_m)])
+    if not v.fence().allows(ned):
+        v.statustext("Geofence: reposition rejected", M.MAV_SEVERITY_WARNING)
+        return M.MAV_RESULT_FAILED
+    if v.mode != "GUIDED" and d.change_mode(v, MODES["GUIDED"]) != M.MAV_RESULT_ACCEPTED:
+        return M.MAV_RESULT_FAILED
+    s = v.model.state
+    if s.armed and (not s.landed or d.takeoff_z is not None):
+        d.takeoff_z = None
+        v._target = ned
+        v._command_model(ned, speed=v.params["MPC_XY_CRUISE"])
+    return M.MAV_RESULT_ACCEPTED
+
+
 def do_change_speed(d: CopterState, v: Host, c: Command) -> Outcome:
     """handle_MAV_CMD_DO_CHANGE_SPEED: param2 m/s > 0 (here: the target now flown, at that speed)."""
     if not (math.isfinite(c.p[1]) and c.p[1] > 0):
@@ -155,6 +188,7 @@ HANDLERS: dict[int, Callable[[CopterState, Host, Command], Outcome]] = {
     M.MAV_CMD_NAV_RETURN_TO_LAUNCH: to_mode("RTL"),
     M.MAV_CMD_NAV_LOITER_UNLIM: to_mode("LOITER"),
     M.MAV_CMD_DO_CHANGE_SPEED: do_change_speed,
+    M.MAV_CMD_DO_REPOSITION: do_reposition,
     M.MAV_CMD_SET_MESSAGE_INTERVAL: set_message_interval,
     M.MAV_CMD_REQUEST_MESSAGE: request_message,
     M.MAV_CMD_GET_HOME_POSITION: send_after(M.MAVLINK_MSG_ID_HOME_POSITION),

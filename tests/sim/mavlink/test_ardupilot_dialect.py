@@ -9,6 +9,7 @@ import math
 import threading
 import time
 
+import numpy as np
 import pytest
 from plain_gcs import Gcs, M
 from pymavlink.dialects.v20 import ardupilotmega as apm
@@ -157,6 +158,14 @@ def test_guided_take_off_setpoints_land_and_disarm(sitl_factory) -> None:
                                                    0, 0, 0, -1.0, 0, 0, 0, 0, 0, 0, 0)
         assert _until(lambda: sitl.vehicle.estimate()[0] < 5.0, 5)
         assert _until(lambda: not sitl.vehicle._velocity_control, 6), "stopped after GUID_TIMEOUT"
+        # DO_REPOSITION: COMMAND_INT only (COMMAND_LONG has no frame for it in ArduPilot)
+        lat, lon, _ = sitl.home.ned_to_geodetic(np.array([2.0, 7.0, 0.0]))
+        assert g.command(M.MAV_CMD_DO_REPOSITION, -1, 0, 0, 0, lat, lon, 5).result == M.MAV_RESULT_UNSUPPORTED
+        g.c.mav.command_int_send(g.sysid, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0,
+                                 -1, 0, 0, 0, int(lat * 1e7), int(lon * 1e7), 5)
+        ack = g.recv("COMMAND_ACK", 3, lambda a: a.command == M.MAV_CMD_DO_REPOSITION)
+        assert ack is not None and ack.result == M.MAV_RESULT_ACCEPTED
+        assert _until(lambda: _near(sitl, 2, 7, -5), 10), sitl.vehicle.estimate()
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0).result == M.MAV_RESULT_FAILED, "in the air"
         assert g.command(M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_ACCEPTED
         assert g.recv("HEARTBEAT", 3, lambda m: m.custom_mode == MODES["LAND"]) is not None
