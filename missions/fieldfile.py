@@ -17,6 +17,7 @@ from sim.gridworld import DEFAULT_CELL_M, ConfigError, GridConfig
 from sim.gridworld.geodesy import HomePosition
 
 KIND = "uavsearch field"
+DIALECTS = ("px4", "ardupilot")  # sim.mavlink.dialects.DIALECTS (missions reads no sim.mavlink here)
 
 
 class FieldFileError(ValueError):
@@ -34,6 +35,13 @@ class FieldSpec:
     #: the paddock's edge is visible (the SITL renders a track round the grass): the companion
     #: reads a border not in view as evidence (`SearchSpec.field_edge`)
     edge: bool = False
+    #: the autopilot family the vehicle speaks as (`sitl --dialect`): the companion picks its
+    #: dialect by it; files written before dialects existed read as px4
+    dialect: str = "px4"
+
+    def __post_init__(self) -> None:
+        if self.dialect not in DIALECTS:
+            raise FieldFileError(f"dialect must be one of {', '.join(DIALECTS)} (got {self.dialect!r})")
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": KIND,
@@ -41,7 +49,8 @@ class FieldSpec:
                 "cell_m": self.cell_m, "width": self.grid.width, "height": self.grid.height,
                 "targets": self.grid.n_targets, "distribution": self.grid.distribution,
                 "motion": self.grid.motion, "target_period": self.grid.target_period,
-                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge}
+                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
+                "dialect": self.dialect}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -72,4 +81,7 @@ def read_field(path: Path) -> FieldSpec:
     edge = d.get("edge", False)  # field files written before the edge was rendered: none
     if not isinstance(edge, bool):
         raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
-    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge)
+    dialect = d.get("dialect", "px4")  # field files written before dialects: PX4's
+    if dialect not in DIALECTS:
+        raise FieldFileError(f"field file {path}: dialect must be one of {', '.join(DIALECTS)} (got {dialect!r})")
+    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect)

@@ -19,6 +19,11 @@ class Physics(StrEnum):
     kinematic = "kinematic"
 
 
+class Dialect(StrEnum):
+    px4 = "px4"
+    ardupilot = "ardupilot"
+
+
 def register(app: typer.Typer) -> None:
     @app.command()
     def sitl(
@@ -29,6 +34,13 @@ def register(app: typer.Typer) -> None:
                  "one process, one physics step and one vectorised controller."),
         speedup: float = typer.Option(1.0, "--speedup", min=0.0, help="Lock-step speed-up; 0 = as fast as possible."),
         physics: Physics = typer.Option(Physics.pybullet, "--physics"),
+        dialect: Dialect = typer.Option(
+            Dialect.px4, "--dialect",
+            help="The autopilot the vehicle speaks as: px4 (PX4 SITL) or ardupilot (ArduCopter SITL: its modes, "
+                 "GUIDED, failsafe parameters, telemetry only on request). Same UDP ports either way."),
+        ekf_delay_s: float = typer.Option(
+            3.0, "--ekf-delay-s", min=0.0,
+            help="ardupilot: simulated seconds until the EKF has a position and GUIDED may arm (the real one ~40)."),
         seed: int = typer.Option(0, "--seed", help="Seed of the field's episode and of the sensors."),
         lat: float = typer.Option(51.4545, "--lat", help="Field origin latitude."),
         lon: float = typer.Option(-2.5879, "--lon", help="Field origin longitude."),
@@ -63,7 +75,7 @@ def register(app: typer.Typer) -> None:
                                  "(127.0.0.1: this machine only)."),
         duration: float | None = typer.Option(None, "--duration", help="Stop after this many simulated seconds."),
     ) -> None:
-        """Start SITL vehicles (PX4 flavour) and print how to connect to them."""
+        """Start SITL vehicles (PX4 or ArduCopter flavour) and print how to connect to them."""
         from missions.fieldfile import FieldSpec, write_field
         from missions.ports import udp_port_taken
         from sim.gridworld import ConfigError, GridConfig
@@ -116,10 +128,11 @@ def register(app: typer.Typer) -> None:
                              target_step_s=target_step_s, field_edge=field_edge,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
-                             gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
+                             gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind,
+                             dialect=dialect.value, ekf_delay_s=ekf_delay_s)
             cfgs.append(cfg)
             api, gcs = cfg.api_ports[1], cfg.gcs_ports[1]
-            typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}):")
+            typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}, {dialect.value}):")
             typer.echo(f"    MAVSDK / companion  udpin://0.0.0.0:{api}")
             typer.echo(f"    MAVProxy            mavproxy.py --master=udpin:0.0.0.0:{gcs}")
             qgc = "connects by itself (UDP 14550)" if gcs == 14550 else f"add a UDP comm link on port {gcs}"
@@ -127,8 +140,8 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on the same links "
                        "(uavsearch run --camera mavlink)")
             fpath = field_out if count == 1 else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
-            write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge),
-                        seed + n, sitl=cfg.to_dict())
+            write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
+                                         dialect.value), seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
             typer.echo(f"    companion           uavsearch run --field {fpath}")

@@ -1,4 +1,4 @@
-"""The SITL vehicle's MAVLink side (PX4 flavour) and the lock-step runner."""
+"""The SITL vehicle's MAVLink side (PX4 or ArduCopter dialect: dialects/) and the lock-step runner."""
 
 from .camera_component import CameraComponent, CameraInfo
 from .component_link import SharedLink

@@ -1,4 +1,4 @@
-"""COMMAND_LONG and COMMAND_INT: one function per command, each returning the MAV_RESULT the
+"""COMMAND_LONG and COMMAND_INT as PX4 answers them: one function per command, each returning the MAV_RESULT the
 COMMAND_ACK carries (honestly: ACCEPTED only for what is done, DENIED for what will not be,
 TEMPORARILY_REJECTED for what could be later, UNSUPPORTED for the rest) and, where the
 command asks for a message, what to send after the ACK, as the command protocol orders."""
@@ -8,15 +8,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from .host import Host
 from .modes import px4_mode_name
 from .telemetry import DEFAULT_RATES
-
-if TYPE_CHECKING:
-    from .vehicle import MavlinkVehicle
 
 M = mavlink
 FORCE_MAGIC = 21196  # param 2 of ARM_DISARM: arm/disarm regardless of checks
@@ -64,7 +61,7 @@ Then = Callable[[], object] | None
 Outcome = int | tuple[int, Then]
 
 
-def arm_disarm(v: MavlinkVehicle, c: Command) -> Outcome:
+def arm_disarm(v: Host, c: Command) -> Outcome:
     force = c.i(1) == FORCE_MAGIC
     if not math.isfinite(c.p[0]):
         return M.MAV_RESULT_DENIED
@@ -79,7 +76,7 @@ def arm_disarm(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_DENIED
 
 
-def do_set_mode(v: MavlinkVehicle, c: Command) -> Outcome:
+def do_set_mode(v: Host, c: Command) -> Outcome:
     name = px4_mode_name(c.i(1), c.i(2)) if c.i(0) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED else None
     s = v.model.state
     if name is None:
@@ -103,11 +100,11 @@ def do_set_mode(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def nav_takeoff(v: MavlinkVehicle, c: Command) -> Outcome:
+def nav_takeoff(v: Host, c: Command) -> Outcome:
     return v.takeoff(c.p[6] if not c.is_int or c.frame not in RELATIVE_FRAMES else c.p[6] + v.home.alt_m)
 
 
-def nav_land(v: MavlinkVehicle, c: Command) -> Outcome:
+def nav_land(v: Host, c: Command) -> Outcome:
     s = v.model.state
     if not s.armed:
         # on the ground: landed is what was asked, so it is done (PX4 accepts LAND on the ground
@@ -119,7 +116,7 @@ def nav_land(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def nav_return_to_launch(v: MavlinkVehicle, c: Command) -> Outcome:
+def nav_return_to_launch(v: Host, c: Command) -> Outcome:
     s = v.model.state
     if not s.armed or s.landed:
         return M.MAV_RESULT_TEMPORARILY_REJECTED
@@ -127,7 +124,7 @@ def nav_return_to_launch(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def mission_start(v: MavlinkVehicle, c: Command) -> Outcome:
+def mission_start(v: Host, c: Command) -> Outcome:
     if not v.mission.items:
         return M.MAV_RESULT_DENIED
     v.mission.current = min(max(c.i(0), 0), len(v.mission.items) - 1)
@@ -135,7 +132,7 @@ def mission_start(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def do_reposition(v: MavlinkVehicle, c: Command) -> Outcome:
+def do_reposition(v: Host, c: Command) -> Outcome:
     s = v.model.state
     if not s.armed or s.landed:
         return M.MAV_RESULT_TEMPORARILY_REJECTED
@@ -153,7 +150,7 @@ def do_reposition(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def do_change_speed(v: MavlinkVehicle, c: Command) -> Outcome:
+def do_change_speed(v: Host, c: Command) -> Outcome:
     ok, why = v.params.set("MPC_XY_CRUISE", float(c.p[1]))
     if not ok:
         v.statustext(f"Speed refused: {why}", M.MAV_SEVERITY_WARNING)
@@ -162,7 +159,7 @@ def do_change_speed(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def set_message_interval(v: MavlinkVehicle, c: Command) -> Outcome:
+def set_message_interval(v: Host, c: Command) -> Outcome:
     msg_id, interval = c.i(0), c.p[1]
     if not (math.isfinite(c.p[0]) and math.isfinite(interval)):
         return M.MAV_RESULT_DENIED  # NaN is no message id, and no interval
@@ -177,7 +174,7 @@ def set_message_interval(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED
 
 
-def inject_failure(v: MavlinkVehicle, c: Command) -> Outcome:
+def inject_failure(v: Host, c: Command) -> Outcome:
     """MAV_CMD_INJECT_FAILURE: param1 FAILURE_UNIT, param2 FAILURE_TYPE (failsafe.py). The ACK
     goes out before the failure takes effect (a failed link would swallow it)."""
     if not (math.isfinite(c.p[0]) and math.isfinite(c.p[1])):
@@ -185,7 +182,7 @@ def inject_failure(v: MavlinkVehicle, c: Command) -> Outcome:
     return v.inject_failure(c.i(0), c.i(1))
 
 
-def request_message(v: MavlinkVehicle, c: Command) -> Outcome:
+def request_message(v: Host, c: Command) -> Outcome:
     msg_id = c.i(0)
     if not math.isfinite(c.p[0]):
         return M.MAV_RESULT_DENIED
@@ -200,15 +197,15 @@ def request_message(v: MavlinkVehicle, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(msg_id)
 
 
-def request_autopilot_capabilities(v: MavlinkVehicle, c: Command) -> Outcome:
+def request_autopilot_capabilities(v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
 
 
-def get_home_position(v: MavlinkVehicle, c: Command) -> Outcome:
+def get_home_position(v: Host, c: Command) -> Outcome:
     return M.MAV_RESULT_ACCEPTED, lambda: v.send_message(M.MAVLINK_MSG_ID_HOME_POSITION)
 
 
-HANDLERS: dict[int, Callable[[MavlinkVehicle, Command], Outcome]] = {
+HANDLERS: dict[int, Callable[[Host, Command], Outcome]] = {
     M.MAV_CMD_COMPONENT_ARM_DISARM: arm_disarm,
     M.MAV_CMD_DO_SET_MODE: do_set_mode,
     M.MAV_CMD_NAV_TAKEOFF: nav_takeoff,
@@ -225,7 +222,7 @@ HANDLERS: dict[int, Callable[[MavlinkVehicle, Command], Outcome]] = {
 }
 
 
-def execute(v: MavlinkVehicle, c: Command) -> tuple[int, Then]:
+def execute(v: Host, c: Command) -> tuple[int, Then]:
     """Run one command: (MAV_RESULT for the ACK, what to send after it)."""
     handler = HANDLERS.get(c.id)
     if handler is None:

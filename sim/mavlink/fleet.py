@@ -64,7 +64,7 @@ class SitlFleet(BackgroundRunner):
         for i, s in enumerate(self.sitls):
             s.vehicle.fleet_index = i
         for s in self.sitls:  # each tick's telemetry built over the fleet, one datagram per link a vehicle
-            if vector_telemetry:
+            if vector_telemetry and s.vehicle.dialect.fleet_vectorised:
                 s.vehicle.stream_sink = self.telemetry.sink
             else:  # built and sent in each vehicle's tick, still one datagram per link
                 s.vehicle.batch_streams = True

@@ -57,7 +57,7 @@ class Flying:
         next setpoint message happens to arrive (which would tie the true path to wall-clock
         message timing and make flights irreproducible)."""
         s = self.model.state
-        if (self.mode == "OFFBOARD" and self._target is not None and not self._velocity_control
+        if (self.mode in self.dialect.tracking_modes and self._target is not None and not self._velocity_control
                 and s.armed and not s.landed):
             self._command_model(self._target, speed=self.params["MPC_XY_VEL_MAX"])
 

@@ -1,6 +1,8 @@
 """What the vehicle does with each message that arrives: commands, mission protocol,
 parameters, setpoints, manual control, TIMESYNC. A mixin of MavlinkVehicle. (Image requests
-are the camera component's: camera_component.py.)"""
+are the camera component's: camera_component.py.) Commands, setpoints, SET_MODE, HEARTBEATs
+and anything else not answered here go to the vehicle's dialect; PX4's setpoint handling (its
+dialect's) stays here."""
 
 from __future__ import annotations
 
@@ -9,9 +11,8 @@ import math
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
-from .commands import ATTITUDE_MODES, RELATIVE_FRAMES, Command, execute
+from .commands import RELATIVE_FRAMES, Command
 from .mission import MissionProtocol
-from .modes import px4_mode_name
 from .params import param_replies
 
 M = mavlink
@@ -40,18 +41,18 @@ class Incoming:
             for reply in replies:
                 self.send(reply)
         elif kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT"):
-            self._on_setpoint(msg)
+            self.dialect.on_setpoint(self, msg)
         elif kind == "TIMESYNC" and msg.tc1 == 0:  # a request: answer with our clock (simulated ns)
             self.send(self.mav.timesync_encode(max(int(self.t * 1e9), 1), msg.ts1))
         elif kind == "HEARTBEAT":
-            self.heard_heartbeat(msg)
+            self.dialect.heard_heartbeat(self, msg)
         elif kind == "MANUAL_CONTROL":
             self._on_manual_control(msg)
+            self.dialect.on_message(self, msg)
         elif kind == "SET_MODE":  # deprecated: obeyed like DO_SET_MODE, without an ACK
-            name = px4_mode_name((msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF)
-            if name is not None and name not in ATTITUDE_MODES and name != "OFFBOARD" and (
-                    name != "POSCTL" or self.manual_fresh()):
-                self.set_mode(name)
+            self.dialect.on_set_mode(self, msg)
+        else:
+            self.dialect.on_message(self, msg)
 
     def _on_manual_control(self, msg: mavlink.MAVLink_message) -> None:
         """Sticks as QGroundControl's joystick sends them: x forward, y right, r yaw in
@@ -66,7 +67,7 @@ class Incoming:
         self.counters.commands += 1
         self.hold_for_companion = False  # the companion acts: time runs on
         cmd = Command.from_msg(msg)
-        result, then = execute(self, cmd)
+        result, then = self.dialect.execute(self, cmd)
         if result != M.MAV_RESULT_ACCEPTED:
             self.counters.denied += 1
         self.send(self.mav.command_ack_encode(cmd.id, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))

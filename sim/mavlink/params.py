@@ -1,5 +1,7 @@
 """The parameter store and protocol (PARAM_REQUEST_LIST / _READ / PARAM_SET -> PARAM_VALUE).
-A realistic handful of PX4's parameters with their ranges; all REAL32 on the wire."""
+A realistic handful of PX4's parameters with their ranges, all REAL32 on the wire; a dialect
+may bring its own set (dialects/ardupilot.py: ArduCopter's names, units and wire types), with
+aliases through which the shared flying code reads them under one internal name."""
 
 from __future__ import annotations
 
@@ -18,6 +20,9 @@ class Param:
     doc: str
     readonly: bool = False  # reflects configuration the link must not change (e.g. signing)
     values: tuple[int, ...] | None = None  # an enum parameter: only these
+    #: MAV_PARAM_TYPE on the wire (the value itself always travels as a float, C-cast, as
+    #: ArduPilot and PX4's REAL32 parameters both send it)
+    wire_type: int = mavlink.MAV_PARAM_TYPE_REAL32
 
 
 def default_params() -> dict[str, Param]:
@@ -60,20 +65,43 @@ def default_params() -> dict[str, Param]:
 LOCKED_WHEN_ARMED = ("GF_", "COM_", "NAV_DLL_", "BAT_", "SYS_FAILURE_EN", "RTL_RETURN_ALT", "RTL_LAND_DELAY")
 
 
+#: an internal name the shared code reads -> (the dialect's parameter, factor): internal value =
+#: parameter value * factor (ArduCopter's WPNAV_SPEED in cm/s read as MPC_XY_CRUISE in m/s)
+Aliases = dict[str, tuple[str, float]]
+
+
 class ParamStore:
-    def __init__(self, signing: bool = False, armed: Callable[[], bool] = lambda: False) -> None:
+    def __init__(self, signing: bool = False, armed: Callable[[], bool] = lambda: False,
+                 params: dict[str, Param] | None = None, locked: tuple[str, ...] | None = None,
+                 aliases: Aliases | None = None, hidden: dict[str, float] | None = None) -> None:
+        """params: the dialect's parameters (None: PX4's); locked: name prefixes refused while
+        armed (None: LOCKED_WHEN_ARMED); aliases: internal names read through a parameter;
+        hidden: internal values the shared code reads that the dialect has no parameter for
+        (never listed, never set over the link)."""
         self.armed = armed
-        self.params = default_params()
+        self.params = default_params() if params is None else params
+        self.locked = LOCKED_WHEN_ARMED if locked is None else locked
+        self.aliases = dict(aliases or {})
         self.params["UAVS_SIGNING"].value = float(signing)
         self.names = list(self.params)
         #: name -> value: what every vehicle reads several times a tick (one dict lookup);
         #: set() is the only way a value changes, and it updates both
         self.values = {name: p.value for name, p in self.params.items()}
+        self.values.update(hidden or {})
+        self._refresh_aliases()
+
+    def _refresh_aliases(self) -> None:
+        for internal, (name, factor) in self.aliases.items():
+            self.values[internal] = self.params[name].value * factor
 
     def __getitem__(self, name: str) -> float:
         return self.values[name]
 
-    def set(self, name: str, value: float) -> tuple[bool, str]:
+    def set(self, name: str, value: float, remote: bool = False) -> tuple[bool, str]:
+        """remote: a PARAM_SET from the link, which sets the dialect's own names only."""
+        if name in self.aliases and not remote:  # the shared code's name for one of the dialect's parameters
+            name, factor = self.aliases[name]
+            value = value / factor
         p = self.params.get(name)
         if p is None:
             return False, f"unknown parameter {name}"
@@ -83,9 +111,11 @@ class ParamStore:
             return False, f"{name}={value} outside [{p.lo}, {p.hi}]"
         if p.values is not None and value not in p.values:
             return False, f"{name}={value} is not one of {list(p.values)}"
-        if name.startswith(LOCKED_WHEN_ARMED) and self.armed() and value != p.value:
+        if self.locked and name.startswith(self.locked) and self.armed() and value != p.value:
             return False, f"{name} cannot change while armed"
         p.value = self.values[name] = float(value)
+        if self.aliases:
+            self._refresh_aliases()
         return True, ""
 
     def index(self, name: str) -> int:
@@ -99,7 +129,7 @@ def _param_id(msg: mavlink.MAVLink_message) -> str:
 
 
 def param_value(mav: mavlink.MAVLink, store: ParamStore, name: str) -> mavlink.MAVLink_message:
-    return mav.param_value_encode(name.encode(), store[name], mavlink.MAV_PARAM_TYPE_REAL32, len(store.names),
+    return mav.param_value_encode(name.encode(), store[name], store.params[name].wire_type, len(store.names),
                                   store.index(name))
 
 
@@ -118,6 +148,6 @@ def param_replies(mav: mavlink.MAVLink, store: ParamStore,
         return ([param_value(mav, store, name)] if name in store.params else []), None
     if kind == "PARAM_SET":
         name = _param_id(msg)
-        ok, why = store.set(name, float(msg.param_value))
+        ok, why = store.set(name, float(msg.param_value), remote=True)
         return ([param_value(mav, store, name)] if name in store.params else []), (None if ok else why)
     return [], None

@@ -6,6 +6,11 @@ is MAVLink system N+1; its offboard/API link sends from UDP 14580+N to 14540+N (
 companion computers: `udpin://0.0.0.0:14540`), its GCS link from 18570+N to 14550 for every
 instance (QGroundControl and MAVProxy listen there and tell vehicles apart by system id).
 Every port can be overridden, which tests do to stay clear of each other.
+
+The vehicle speaks as PX4 (dialect "px4", the default) or as ArduCopter ("ardupilot",
+dialects/ardupilot.py) on the same ports either way, so a companion reaches instance N at UDP
+14540+N whichever autopilot it stands in for (a real ArduPilot SITL would be reached on TCP
+5760+10N or through MAVProxy's --out instead; docs/sitl.md).
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from sim.vehicle.model import FlightModel
 
 from .camera_component import MAV_COMP_ID_CAMERA, CameraComponent, CameraInfo
 from .component_link import SharedLink
+from .dialects import DIALECTS, make_dialect
 from .geofence import Geofence
 from .runner import BackgroundRunner, pace
 from .tlog import TlogWriter
@@ -74,6 +80,11 @@ class SitlConfig:
     #: SITL's lockstep, extended to the companion, so a loaded machine cannot change a flight
     companion_lockstep: bool = False
     system_id: int | None = None  # None: instance + 1, as PX4 SITL
+    #: the autopilot family the vehicle speaks as: px4 | ardupilot (dialects/)
+    dialect: str = "px4"
+    #: ardupilot: simulated seconds from boot until the EKF has an absolute horizontal position
+    #: (arming in GUIDED waits for it; the real ArduCopter SITL takes ~40 s, tests want few)
+    ekf_delay_s: float = 3.0
     # port overrides (None: PX4 SITL's numbering for this instance)
     api_local_port: int | None = None
     api_remote_port: int | None = None
@@ -97,6 +108,10 @@ class SitlConfig:
             socket.inet_aton(self.bind)
         except OSError:
             raise ValueError(f"bind must be an IPv4 address such as 0.0.0.0 or 127.0.0.1 (got {self.bind!r})") from None
+        if self.dialect not in DIALECTS:
+            raise ValueError(f"dialect must be one of {', '.join(DIALECTS)} (got {self.dialect!r})")
+        if not (0.0 <= self.ekf_delay_s < 3600.0):
+            raise ValueError(f"ekf_delay_s must be in [0, 3600) s (got {self.ekf_delay_s})")
         if self.speedup < 0:
             raise ValueError("speedup must be >= 0 (0: as fast as possible)")
         if self.physics not in ("pybullet", "kinematic"):
@@ -191,8 +206,10 @@ class Sitl(BackgroundRunner):
                 links[0].close()
                 raise
         self.gps = GpsModel(self.home, cfg.seed, cfg.gps)
+        options = {"ekf_delay_s": cfg.ekf_delay_s, "sysid": cfg.sysid} if cfg.dialect == "ardupilot" else {}
         self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, system_id=cfg.sysid,
-                                      signing=cfg.signing_key is not None)
+                                      signing=cfg.signing_key is not None,
+                                      dialect=make_dialect(cfg.dialect, **options))
         #: the downward camera: a MAVLink camera component (100) on the vehicle's links
         self.camera: CameraComponent | None = self._camera_component(links) if has_camera else None
         for name, value in (("GF_MAX_HOR_DIST", cfg.geofence.max_horizontal_m),

@@ -8,7 +8,7 @@ import math
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from .telemetry import BUILDERS, Snapshot
+from .telemetry import Snapshot
 
 M = mavlink
 STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT
@@ -103,7 +103,7 @@ class Streams:
         if msg_id == M.MAVLINK_MSG_ID_MISSION_CURRENT:
             self.send_mission_current()
             return True
-        build = BUILDERS.get(msg_id)
+        build = self.builders.get(msg_id)  # the dialect's (telemetry.BUILDERS for PX4)
         msg = build(self.enc, snap or self.snapshot()) if build is not None else None
         if msg is None:
             return False

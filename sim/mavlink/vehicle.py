@@ -1,6 +1,8 @@
-"""The simulated vehicle's MAVLink side, in the manner of PX4 SITL.
+"""The simulated vehicle's MAVLink side, in the manner of PX4 SITL or of ArduCopter SITL.
 
-It owns the links and the vehicle's state; its concerns live in mixins: what arrives is
+It owns the links and the vehicle's state; where the autopilot families differ (modes,
+commands, setpoints, failsafes, streams) it asks its dialect (dialects/: px4.py, the default,
+and ardupilot.py). Its concerns live in mixins: what arrives is
 dispatched in incoming.py (commands.py, mission.py, params.py), the PX4-style modes are flown
 in flying.py through any FlightModel and inside the geofence (geofence.py), and telemetry and
 STATUSTEXT go out in streams.py. The flying runs in `tick`, on simulated time; timers that wait
@@ -29,16 +31,16 @@ from sim.vehicle.model import FlightModel
 
 from . import wire
 from .battery import Battery
+from .dialects import Dialect
+from .dialects.px4 import PX4
 from .failsafe import Failsafes
 from .flying import Flying
 from .geofence import Geofence
 from .incoming import Incoming
 from .mission import MissionItem, MissionProtocol, MissionStore
-from .params import ParamStore
 from .quiet import QuietVehicle
 from .signing import SigningGuard
 from .streams import STATUSTEXT_KEEP, Streams, keep
-from .telemetry import DEFAULT_RATES
 from .udp import UdpLink
 
 M = mavlink
@@ -73,18 +75,22 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         system_id: int = 1,
         signing: bool = False,
         clock: Callable[[], float] = time.monotonic,
+        dialect: Dialect | None = None,
     ) -> None:
+        """dialect: the autopilot family it speaks as (None: PX4)."""
         self.model, self.links, self.home, self.gps = model, links, home, gps
         #: the system's other components behind the same links (as behind a MAVLink router)
         self.components: list[Component] = []
+        self.dialect = PX4() if dialect is None else dialect
+        self.builders = self.dialect.builders  # telemetry builders by message id (streams.py)
         self.sysid = system_id
         self.clock = clock  # wall clock, for timers that wait on a client
         self._next_wall: dict[int, float] = {}
-        self.params = ParamStore(signing=signing, armed=lambda: self.model.state.armed)
+        self.params = self.dialect.param_store(signing, lambda: self.model.state.armed)
         self.mission = MissionStore()
         self.missions = MissionProtocol(self, self.mission, clock)
-        self.mode = "AUTO.LOITER"
-        self.rates = dict(DEFAULT_RATES)
+        self.mode = self.dialect.initial_mode
+        self.rates = self.dialect.default_rates()
         self._next_due = {k: 0.0 for k in self.rates}
         self._stream_next = 0.0  # simulated time the next stream message is due (streams.py)
         #: send each tick's telemetry as one datagram per link (SitlFleet sets it: a sendto costs
@@ -155,15 +161,8 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         return self.model.state.position_ned + self.gps.estimate_error
 
     def set_mode(self, mode: str) -> None:
-        if mode != self.mode:
-            self.mode = mode
-            self._rtl_phase = 0
-            if mode in ("AUTO.LOITER", "POSCTL"):
-                self._hold_here()
-            if mode == "OFFBOARD" and self._last_setpoint is not None:
-                self._fly_setpoint(self._last_setpoint)
-        if mode == "AUTO.LAND":
-            self.model.land()
+        """Enter a mode as the dialect enters it (no checks: the caller made them)."""
+        self.dialect.set_mode(self, mode)
 
     def arm(self) -> bool:
         ok = self.model.arm()
@@ -231,8 +230,7 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         self.battery.step(dt, s.armed, s.armed and not s.landed, self.params["UAVS_BAT_ENDUR_S"],
                           self.params["SIM_BAT_MIN_PCT"] / 100.0)
         s.battery_remaining, s.battery_voltage = self.battery.reading, self.battery.voltage
-        self._check_failsafes()
-        self._fly()
+        self.dialect.step(self)  # failsafes, then the mode's flying
         self._stream()
         for c in self.components:  # after this tick's telemetry: a frame of t follows its samples
             c.tick(t)
