@@ -12,6 +12,7 @@ import logging
 import re
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -155,6 +156,8 @@ class VehicleLink:
         self._rx = threading.Thread(target=self._receive, name="mavlink-rx", daemon=True)
         self._rx.start()
         self.heartbeats_silenced = False
+        #: (this computer's monotonic s, the vehicle's boot s) of recent telemetry, for its clock rate
+        self._boot_clock: deque[tuple[float, float]] = deque(maxlen=64)
         self._hb_period = 1.0 / heartbeat_hz if heartbeat_hz > 0 else 0.0
         self._hb = threading.Thread(target=self._heartbeats, name="mavlink-hb", daemon=True)
         if self._hb_period:
@@ -238,14 +241,31 @@ class VehicleLink:
         for the failsafe to take over, as a dead process does."""
         self.heartbeats_silenced = silent
 
+    def vehicle_clock_rate(self) -> float:
+        """How fast the vehicle's clock runs against this computer's (its telemetry's
+        time_boot_ms over the last few seconds; 1 until measured): a SITL faster than real time
+        counts its failsafe timeouts in its own seconds."""
+        clock = list(self._boot_clock)
+        if len(clock) < 2 or clock[-1][0] - clock[0][0] < 1.0:
+            return 1.0
+        (m0, b0), (m1, b1) = clock[0], clock[-1]
+        return max((b1 - b0) / (m1 - m0), 0.0)
+
+    def heartbeat_now(self) -> None:
+        """One HEARTBEAT at once (after SYSID_MYGCS names this companion: ArduPilot's GCS
+        failsafe is armed only once it has heard the system it watches)."""
+        with self._send_lock:
+            self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
+                                         0, 0, mavlink.MAV_STATE_ACTIVE)
+
     def _heartbeats(self) -> None:
-        while not self._stop.wait(self._hb_period):
+        """At heartbeat_hz of the vehicle's clock (at most 20 Hz of ours): a SITL at 10x with
+        FS_GCS_TIMEOUT 5 s would otherwise see a 1 Hz companion silent for 10 of its seconds."""
+        while not self._stop.wait(max(self._hb_period / max(self.vehicle_clock_rate(), 1.0), 0.05)):
             if self.heartbeats_silenced:
                 continue
             try:
-                with self._send_lock:
-                    self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
-                                                 0, 0, mavlink.MAV_STATE_ACTIVE)
+                self.heartbeat_now()
             except Exception as e:  # noqa: BLE001 - a closed socket at shutdown
                 if not self._stop.is_set():
                     log.warning("heartbeat send failed: %s", e)
@@ -281,6 +301,11 @@ class VehicleLink:
                 "relative_alt": msg.relative_alt * 1e-3, "time_s": msg.time_boot_ms * 1e-3,
             }
         elif kind == "LOCAL_POSITION_NED":
+            now = time.monotonic()
+            if not self._boot_clock or now - self._boot_clock[-1][0] > 0.1:
+                self._boot_clock.append((now, msg.time_boot_ms * 1e-3))
+            while len(self._boot_clock) > 2 and now - self._boot_clock[1][0] > 3.0:
+                self._boot_clock.popleft()
             t.local = {"n": msg.x, "e": msg.y, "d": msg.z, "vn": msg.vx, "ve": msg.vy,
                        "vd": msg.vz, "time_s": msg.time_boot_ms * 1e-3}
         elif kind == "HOME_POSITION":

@@ -160,6 +160,8 @@ class Pilot:
         t_leg = self.t_offboard + LEG_AFTER_S
         timed = self._ask_ahead((t_arm, t_climb, self.t_offboard, t_leg))
         self.registration.register_launch()  # its window ends before t_arm
+        if dialect.heartbeat_feeds_failsafe:  # heard before arming: the failsafe watches from here
+            link.heartbeat_now()
         if dialect.guided_before_arming:  # ArduCopter arms and takes off in GUIDED
             link.set_mode(dialect.guided_mode)
         if timed:

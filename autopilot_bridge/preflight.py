@@ -80,4 +80,9 @@ def ensure_failsafe(link: VehicleLink, companion_sysid: int, set_safe: bool = Fa
         line = f"--set-failsafe: {r.name} {_fmt(r.value)} -> {_fmt(got)}"
         echo(line)
         changed.append(line)
+    if link.require_dialect().heartbeat_feeds_failsafe:
+        # ArduPilot's GCS failsafe is armed only once it has heard the system it now watches:
+        # a companion dying before its next 1 Hz heartbeat would go unnoticed (measured on our
+        # emulation: a take-off and a leg in under a second, then silence, hovered for ever)
+        link.heartbeat_now()
     return changed

@@ -1,13 +1,17 @@
-"""Our dialects against the real autopilots' own SITLs (PX4 with SIH, ArduCopter with its own
-physics): the family is recognised, the companion-loss failsafe is judged as the autopilot
-would act on it, the take-off and a setpoint leg fly, and every way the companion can stop
-(the bring-down's rtl / land / hold, and a companion that falls silent) ends landed and
-disarmed. Skipped where PX4_SITL / ARDUPILOT_SITL are not set; CI's stand-in is our own
-vehicle speaking each dialect."""
+"""The companion's dialects against each autopilot family, twice: against our own vehicle
+speaking it (`sitl --dialect`, CI's stand-in) and against the real autopilot's own SITL (PX4
+with SIH, ArduCopter with its own physics; skipped where PX4_SITL / ARDUPILOT_SITL are not
+set). The same test bodies run on both, which is how the emulation is checked: the family is
+recognised, the companion-loss failsafe is judged as the autopilot would act on it, the
+take-off and a setpoint leg fly, and every way the companion can stop (the bring-down's rtl /
+land / hold, and a companion that falls silent) ends landed and disarmed."""
 
 from __future__ import annotations
 
+import socket
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -16,9 +20,37 @@ from real_sitl import arducopter, px4_sih
 from autopilot_bridge.abort import bring_down
 from autopilot_bridge.link import VehicleLink
 from autopilot_bridge.preflight import UnsafeFailsafe, ensure_failsafe, read_failsafe
+from sim.mavlink import Sitl, SitlConfig
 
 ALT = 3.5
 pytestmark = pytest.mark.slow
+BACKENDS = ("ours", "real")
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextmanager
+def vehicle(backend: str, family: str, instance: int) -> Iterator[VehicleLink]:
+    """A link to a vehicle of this family: our SITL speaking its dialect (kinematic body, no
+    camera, 10x), or the real autopilot's SITL (instance: PX4 0-9, ArduCopter any)."""
+    if backend == "ours":
+        sitl = Sitl(SitlConfig(dialect=family, physics="kinematic", camera=False, speedup=10.0, gcs_link=False,
+                               api_local_port=_free_port(), api_remote_port=_free_port())).start()
+        try:
+            with VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}") as link:
+                yield link
+        finally:
+            sitl.stop()
+    elif family == "px4":
+        with px4_sih(instance) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+            yield link
+    else:
+        with arducopter(instance, 25800 + instance) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+            yield link
 
 
 def _take_off_and_leg(link: VehicleLink, set_failsafe: bool = False) -> None:
@@ -64,8 +96,9 @@ def _wait_disarmed(link: VehicleLink, timeout: float = 90.0) -> list[str]:
 
 
 # -- PX4 --------------------------------------------------------------------------------------
-def test_px4_is_recognised_and_its_default_failsafe_is_safe() -> None:
-    with px4_sih(7) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_px4_is_recognised_and_its_default_failsafe_is_safe(backend: str) -> None:
+    with vehicle(backend, "px4", 7) as link:
         link.wait_heartbeat(30)
         assert link.require_dialect().name == "px4"
         readings = {r.name: r for r in read_failsafe(link, 245)}
@@ -78,26 +111,29 @@ def test_px4_is_recognised_and_its_default_failsafe_is_safe() -> None:
         assert ensure_failsafe(link, 245, set_safe=True) == ["--set-failsafe: COM_OBL_RC_ACT 5 -> 3"]
 
 
-def test_px4_comes_down_when_the_companion_falls_silent() -> None:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_px4_comes_down_when_the_companion_falls_silent(backend: str) -> None:
     """A dead companion, as the vehicle sees it: no setpoints, no heartbeats."""
-    with px4_sih(8) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+    with vehicle(backend, "px4", 8) as link:
         _take_off_and_leg(link)
         link.silence_heartbeats(True)
         modes = _wait_disarmed(link)
         assert "AUTO.RTL" in modes, modes
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("action", ["rtl", "land", "hold"])
-def test_px4_bring_down(action: str) -> None:
-    with px4_sih(9) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+def test_px4_bring_down(backend: str, action: str) -> None:
+    with vehicle(backend, "px4", 9) as link:
         _take_off_and_leg(link)
         td = bring_down(link, action, timeout_s=90, hold_s=3, echo=lambda _s: None)
         assert td.disarmed, td
 
 
 # -- ArduPilot --------------------------------------------------------------------------------
-def test_ardupilot_refuses_its_default_failsafe_and_sets_it() -> None:
-    with arducopter(11, 25811) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_ardupilot_refuses_its_default_failsafe_and_sets_it(backend: str) -> None:
+    with vehicle(backend, "ardupilot", 11) as link:
         link.wait_heartbeat(60)
         assert link.require_dialect().name == "ardupilot"
         with pytest.raises(UnsafeFailsafe) as e:
@@ -109,17 +145,19 @@ def test_ardupilot_refuses_its_default_failsafe_and_sets_it() -> None:
         assert all(r.ok for r in read_failsafe(link, 245))
 
 
-def test_ardupilot_comes_down_when_the_companion_falls_silent() -> None:
-    with arducopter(12, 25812) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_ardupilot_comes_down_when_the_companion_falls_silent(backend: str) -> None:
+    with vehicle(backend, "ardupilot", 12) as link:
         _take_off_and_leg(link, set_failsafe=True)
         link.silence_heartbeats(True)
         modes = _wait_disarmed(link, 120)
         assert "RTL" in modes, modes
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("action", ["rtl", "land", "hold"])
-def test_ardupilot_bring_down(action: str) -> None:
-    with arducopter(13, 25813) as port, VehicleLink(f"udpin:0.0.0.0:{port}") as link:
+def test_ardupilot_bring_down(backend: str, action: str) -> None:
+    with vehicle(backend, "ardupilot", 13) as link:
         _take_off_and_leg(link, set_failsafe=True)
         td = bring_down(link, action, timeout_s=120, hold_s=3, echo=lambda _s: None)
         assert td.disarmed, td
