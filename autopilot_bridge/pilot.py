@@ -184,7 +184,10 @@ class Pilot:
     def _ask_ahead(self, times: tuple[float, ...]) -> bool:
         """Ask for captures at these simulated instants, long before the clock gets there.
         False when the vehicle has no camera (it answers UNSUPPORTED): then the take-off is
-        flown on command timing, as a vehicle without lockstep flies it anyway."""
+        flown on command timing, as a vehicle without lockstep flies it anyway; so it is with a
+        camera source that cannot capture at an instant (a video stream: timed_captures False)."""
+        if not getattr(self.frames, "timed_captures", True):
+            return False
         try:
             for t in times:
                 self.frames.ask(t)

@@ -61,7 +61,9 @@ class PolicyService:
 
     def __init__(self, link: VehicleLink, policy: Policy, spec: SearchSpec, seed: int = 0,
                  detector: DetectorConfig | None = None, clock: Callable[[], float] = time.monotonic,
-                 on_progress: Callable[[Progress], None] | None = None) -> None:
+                 on_progress: Callable[[Progress], None] | None = None, frames: FrameRequester | None = None) -> None:
+        """frames: the camera source (FrameRequester's methods; a video stream's:
+        autopilot_bridge/camera/video.py); None: the vehicle's MAVLink camera."""
         self.link, self.policy, self.spec = link, policy, spec
         self.on_progress = on_progress
         self.det = detector or DetectorConfig(altitude_m=spec.altitude_m)
@@ -69,7 +71,7 @@ class PolicyService:
         self.rng = np.random.default_rng([seed, 0x5E2])
         self.estimator = GpsEstimator()
         self.pmap = ProbabilisticVisitationMap(spec.grid.width, spec.grid.height)
-        self.frames = FrameRequester(link)
+        self.frames = frames if frames is not None else FrameRequester(link)
         #: a few camera frames for the operator's report: (move, frame, target channel of I);
         #: the first, those where the detector saw a target (up to KEEP_FRAMES) and the last
         self.kept_frames: list[tuple[int, np.ndarray, list]] = []

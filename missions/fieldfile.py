@@ -34,6 +34,10 @@ class FieldSpec:
     #: the paddock's edge is visible (the SITL renders a track round the grass): the companion
     #: reads a border not in view as evidence (`SearchSpec.field_edge`)
     edge: bool = False
+    #: the camera's video stream (`sitl --video-port`): what `run --camera video` opens and
+    #: the SDP file describing it (written next to the field file; relative to it)
+    video_uri: str | None = None
+    video_sdp: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": KIND,
@@ -41,7 +45,8 @@ class FieldSpec:
                 "cell_m": self.cell_m, "width": self.grid.width, "height": self.grid.height,
                 "targets": self.grid.n_targets, "distribution": self.grid.distribution,
                 "motion": self.grid.motion, "target_period": self.grid.target_period,
-                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge}
+                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
+                "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp}}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -72,4 +77,13 @@ def read_field(path: Path) -> FieldSpec:
     edge = d.get("edge", False)  # field files written before the edge was rendered: none
     if not isinstance(edge, bool):
         raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
-    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge)
+    video = d.get("video")  # field files written before the video stream: none
+    uri = sdp = None
+    if video is not None:
+        if not isinstance(video, dict) or not isinstance(video.get("uri"), str) or \
+                not isinstance(video.get("sdp"), str | None):
+            raise FieldFileError(f"field file {path}: video must be {{\"uri\": ..., \"sdp\": ...}} (got {video!r})")
+        uri, sdp = video["uri"], video.get("sdp")
+        if sdp is not None and not Path(sdp).is_absolute():
+            sdp = str(Path(path).parent / sdp)
+    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, uri, sdp)

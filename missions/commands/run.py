@@ -54,6 +54,12 @@ def register(app: typer.Typer) -> None:
         tlog: bool = typer.Option(True, "--tlog/--no-tlog", help="Log the link to OUT/companion.tlog."),
         signing_key_file: Path | None = typer.Option(
             None, "--signing-key-file", help="Sign the link (MAVLink 2): a chmod-600 file with 64 hex chars or a passphrase."),
+        camera: str = typer.Option(
+            "mavlink", "--camera",
+            help="Where frames come from: mavlink (the vehicle's MAVLink camera), video (the field file's video "
+                 "stream), or a video URL PyAV opens: udp://:5600 (RTP, with its SDP), rtsp://..., /dev/videoN, a file."),
+        video_sdp: Path | None = typer.Option(
+            None, "--video-sdp", help="The SDP file of an RTP video stream (default: the field file's)."),
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
         from autopilot_bridge.link import VehicleLink
@@ -135,6 +141,21 @@ def register(app: typer.Typer) -> None:
         except KeyFileError as e:
             raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
         config["signing"] = key is not None
+        frames = None
+        from autopilot_bridge.camera.video import VideoSourceError, is_video_spec, open_video_source
+
+        if is_video_spec(camera):
+            spec_cam, sdp = camera, video_sdp if video_sdp is not None else (fs.video_sdp if fs is not None else None)
+            if camera == "video":
+                if fs is None or fs.video_uri is None:
+                    raise typer.BadParameter("video: the field file names no video stream (start `uavsearch sitl "
+                                             "--video-port 5600`), or give its URL", param_hint="--camera")
+                spec_cam = fs.video_uri
+            try:
+                frames = open_video_source(spec_cam, sdp)
+            except VideoSourceError as e:
+                raise typer.BadParameter(str(e), param_hint="--camera") from e
+        config["camera"] = camera
         link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
                            tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key)
         typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
@@ -143,11 +164,15 @@ def register(app: typer.Typer) -> None:
             with FlightProgress(f"search ({pol.name})") as progress:
                 spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge)
                 service = PolicyService(link, pol, spec, seed,
-                                        on_progress=progress)
+                                        on_progress=progress, frames=frames)
+                if frames is not None:  # frames the stream does not stamp: on the simulated clock
+                    frames.clock = lambda: service.intake.sim_time_s
                 end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
                                      move_timeout_s=move_timeout)
         finally:
             link.close()
+            if frames is not None:
+                frames.close()
         log = end.log
         save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed))
         moves = max(len(log.cells) - 1, 0)

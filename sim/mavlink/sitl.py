@@ -33,6 +33,7 @@ from .runner import BackgroundRunner, pace
 from .tlog import TlogWriter
 from .udp import UdpLink
 from .vehicle import MavlinkVehicle
+from .video import VideoConfig, VideoStreamer
 
 TICK_S = 0.02
 LOCKSTEP_TIMEOUT_S = 5.0  # wall-clock seconds a companion may think before time runs on
@@ -69,6 +70,8 @@ class SitlConfig:
     #: SITL's lockstep, extended to the companion, so a loaded machine cannot change a flight
     companion_lockstep: bool = False
     system_id: int | None = None  # None: instance + 1, as PX4 SITL
+    #: the camera's RTP/H.264 stream (`sitl --video-port`, sim/mavlink/video.py); port 0: off
+    video: VideoConfig = field(default_factory=VideoConfig)
     # port overrides (None: PX4 SITL's numbering for this instance)
     api_local_port: int | None = None
     api_remote_port: int | None = None
@@ -104,7 +107,7 @@ class SitlConfig:
         d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("signing_key", "grid")}
         d.update(home=asdict(self.home), geofence=asdict(self.geofence), grid=self.grid.to_dict(), gps=asdict(self.gps),
                  signing=self.signing_key is not None, tlog=None if self.tlog is None else str(self.tlog),
-                 sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports)
+                 sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports, video=asdict(self.video))
         return d
 
     @property
@@ -170,6 +173,9 @@ class Sitl(BackgroundRunner):
                                 origin=self.episode.agent[0], edge=cfg.field_edge)
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
             camera = self._render
+        self.video: VideoStreamer | None = None
+        if cfg.video.enabled and camera is not None:
+            self.video = VideoStreamer(cfg.video, cfg.camera_px, cfg.camera_px)
         self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None
         sink = self.tlog.write if self.tlog else None
         links = [UdpLink(*cfg.api_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
@@ -180,6 +186,8 @@ class Sitl(BackgroundRunner):
                                      signing_key=cfg.signing_key, on_bytes=sink, log_outgoing=False, bind=cfg.bind))
             except OSError:
                 links[0].close()
+                if self.video is not None:
+                    self.video.close()
                 raise
         self.gps = GpsModel(self.home, cfg.seed, cfg.gps)
         self.vehicle = MavlinkVehicle(self.model, links, self.home, self.gps, camera, system_id=cfg.sysid,
@@ -190,6 +198,8 @@ class Sitl(BackgroundRunner):
             if not ok:
                 for link in links:
                     link.close()
+                if self.video is not None:
+                    self.video.close()
                 raise ValueError(f"geofence: {why}")
         self.vehicle.lockstep = cfg.companion_lockstep
         self.lockstep_timeouts = 0
@@ -236,6 +246,14 @@ class Sitl(BackgroundRunner):
         self.t += TICK_S
         self._note_arming()
         self.vehicle.tick(self.t)
+        self._stream_video()
+
+    def _stream_video(self) -> None:
+        """Render the video stream's frame when one is due (simulated time); the encoder's
+        thread does the rest."""
+        if self.video is not None and self.video.due(self.t):
+            s = self.model.state
+            self.video.submit(self._render(s.position_ned.copy(), float(s.attitude_rpy[2])), self.t)
 
     def _note_arming(self) -> None:
         if self._motion_t0 is None and self.model.state.armed:
@@ -250,6 +268,7 @@ class Sitl(BackgroundRunner):
         self._note_arming()
         try:
             self.vehicle.tick(t, serve, sampled)
+            self._stream_video()
         except Exception:
             self.errors.append(traceback.format_exc())
             log.exception("SITL %d tick failed at t=%.2f", self.cfg.instance, t)
@@ -287,6 +306,8 @@ class Sitl(BackgroundRunner):
     def _close(self) -> None:
         for link in self.vehicle.links:
             link.close()
+        if self.video is not None:
+            self.video.close()
         if self.tlog:
             self.tlog.close()
         if self._own_model:
