@@ -43,7 +43,7 @@ log = logging.getLogger(__name__)
 #: the companion sees the camera only through the stream)
 SEI_UUID = bytes.fromhex("75617673656172636874696d65763031")
 RING_FRAMES = 64  # 6.4 s of stream at 10 Hz
-OPEN_TIMEOUT_S = 10.0
+OPEN_RETRY_S = 1.0  # an open that hears nothing this long is tried again (and close() seen)
 READ_TIMEOUT_S = 0.5  # a read blocked this long returns, so close() is quick; the stream is then read on
 TOLERANCE_S = 1e-3  # a frame stamped this much before the asked instant is its frame (float sums)
 
@@ -167,64 +167,79 @@ class VideoSource:
     timed_captures = False
 
     def __init__(self, url: str, sdp: str | os.PathLike | None = None,
-                 clock: Callable[[], float] = time.monotonic, ring: int = RING_FRAMES,
-                 open_timeout: float = OPEN_TIMEOUT_S) -> None:
+                 clock: Callable[[], float] = time.monotonic, ring: int = RING_FRAMES) -> None:
         """clock: the time scale of `wait(at_s)` for frames the stream does not stamp (in a
-        flight: the simulated time telemetry carries); stamped frames use the stream's."""
-        import av
-
+        flight: the simulated time telemetry carries); stamped frames use the stream's.
+        What is wrong with the URL or SDP raises here; the stream is opened on the decoding
+        thread (FFmpeg's open of an RTP stream waits for its first packets): first_frame()
+        raises what went wrong there."""
         self.url, self.clock = url, clock
         self._in = describe(url, sdp)
-        try:
-            self.container = av.open(self._in.target, format=self._in.format, options=self._in.options,
-                                     timeout=(open_timeout, READ_TIMEOUT_S))
-        except Exception as e:  # FFmpeg's errors (OSError subclasses, TimeoutError, ExitError, ...)
-            self._remove_temp()
-            why = "no stream arrived in time" if isinstance(e, TimeoutError | av.error.ExitError) else str(e)
-            raise VideoSourceError(f"camera {url}: cannot open the stream ({why})") from e
-        if not self.container.streams.video:
-            self.container.close()
-            self._remove_temp()
-            raise VideoSourceError(f"camera {url}: no video stream in it")
-        self.stream = self.container.streams.video[0]
-        self.stream.thread_type = "SLICE"  # frame threading would hold frames back
         self._ring: deque[StampedFrame] = deque(maxlen=ring)
         self._cv = threading.Condition()
         self._stop = threading.Event()
+        self.container = None
+        self.error: VideoSourceError | None = None  # why the stream could not be opened or read
         self.decoded = 0
         self.errors = 0
         self.requests = 0
         self.ended = False  # a file played to its end, or the stream broke
-        self._thread = threading.Thread(target=self._decode_loop, name="video-source", daemon=True)
+        self._thread = threading.Thread(target=self._run, name="video-source", daemon=True)
         self._thread.start()
 
     # -- decoding -----------------------------------------------------------------------
-    def _decode_loop(self) -> None:
+    def _open(self):
+        """The container, opened with short timeouts so close() is never held up for long;
+        None when stopped first."""
         import av
 
         while not self._stop.is_set():
             try:
-                for packet in self.container.demux(self.stream):
+                return av.open(self._in.target, format=self._in.format, options=self._in.options,
+                               timeout=(OPEN_RETRY_S, READ_TIMEOUT_S))
+            except (TimeoutError, av.error.ExitError):  # nothing yet (an RTSP server or a device coming up)
+                continue
+        return None
+
+    def _run(self) -> None:
+        try:
+            container = self._open()
+            if container is None:
+                return
+            self.container = container
+            if not container.streams.video:
+                raise VideoSourceError(f"camera {self.url}: no video stream in it")
+            stream = container.streams.video[0]
+            stream.thread_type = "SLICE"  # frame threading would hold frames back
+            self._decode_loop(container, stream)
+        except VideoSourceError as e:
+            self.error = e
+        except Exception as e:  # FFmpeg's errors name what failed: no such host, refused, bad data
+            if not self._stop.is_set():
+                self.error = VideoSourceError(f"camera {self.url}: cannot read the stream ({e})")
+                log.warning("%s", self.error)
+        finally:
+            with self._cv:
+                self.ended = True
+                self._cv.notify_all()
+
+    def _decode_loop(self, container, stream) -> None:
+        import av
+
+        while not self._stop.is_set():
+            try:
+                for packet in container.demux(stream):
                     if self._stop.is_set():
                         return
                     t0 = time.perf_counter()
                     for frame in packet.decode():
                         self._keep(frame, t0)
                 else:
-                    self.ended = True  # end of file
-                    return
+                    return  # end of file
             except (TimeoutError, av.error.ExitError):  # nothing came for READ_TIMEOUT_S: read on
                 continue
             except av.error.InvalidDataError:  # a lost packet broke a frame: the next keyframe mends it
                 self.errors += 1
-            except Exception:
-                if not self._stop.is_set():
-                    log.exception("camera %s: decoding stopped", self.url)
-                    self.ended = True
-                return
-            finally:
-                with self._cv:
-                    self._cv.notify_all()
 
     def _keep(self, frame, t0: float) -> None:
         body = None
@@ -296,6 +311,18 @@ class VideoSource:
                 return self._ring[-1].frame
         return None
 
+    def first_frame(self, timeout: float) -> StampedFrame:
+        """The first decoded frame; VideoSourceError (naming the URL) when none comes within
+        `timeout` wall seconds. An RTP stream opens without anything arriving (its SDP says
+        all), so a companion checks here that the camera is on before it flies."""
+        f = self.wait_frame(float("-inf"), timeout)
+        if f is None and self.error is not None:
+            raise self.error
+        if f is None:
+            raise VideoSourceError(f"camera {self.url}: no frame decoded within {timeout:g} s (is the stream "
+                                   "running and sent to this machine's port?)")
+        return f
+
     @property
     def latest(self) -> StampedFrame | None:
         with self._cv:
@@ -303,8 +330,8 @@ class VideoSource:
 
     def close(self) -> None:
         self._stop.set()
-        self._thread.join(timeout=READ_TIMEOUT_S + 2.0)
-        if not self._thread.is_alive():
+        self._thread.join(timeout=OPEN_RETRY_S + READ_TIMEOUT_S + 2.0)
+        if not self._thread.is_alive() and self.container is not None:
             self.container.close()
         self._remove_temp()
 
@@ -326,7 +353,15 @@ def is_video_spec(spec: str) -> bool:
 
 
 def open_video_source(spec: str, sdp: str | os.PathLike | None = None,
-                      clock: Callable[[], float] = time.monotonic) -> VideoSource:
+                      clock: Callable[[], float] = time.monotonic, first_frame_s: float | None = 30.0) -> VideoSource:
     """The camera source for `run --camera SPEC` (the camera package's open_source dispatches
-    here for anything not MAVLink); `sdp`: an RTP stream's SDP file (the field file names it)."""
-    return VideoSource(spec, sdp, clock)
+    here for anything not MAVLink); `sdp`: an RTP stream's SDP file (the field file names it).
+    Waits for a first frame (VideoSourceError naming the URL when none comes in first_frame_s)."""
+    src = VideoSource(spec, sdp, clock)
+    if first_frame_s is not None:
+        try:
+            src.first_frame(first_frame_s)
+        except VideoSourceError:
+            src.close()
+            raise
+    return src

@@ -249,6 +249,8 @@ class VideoStreamer:
         self.frames_dropped = 0  # the worker fell behind: the oldest waiting frame was left out
         self.send_errors = 0
         self.bytes_sent = 0  # RTP payload and headers
+        #: the last frames sent and their capture times (what a receiver should decode: tests, benchmarks)
+        self.recent: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
         self.encode_s: list[float] = []  # wall seconds per frame: scale + encode + packetise + send
         self._next_t = 0.0  # the next frame's time on the lattice k / rate_hz
         self._thread = threading.Thread(target=self._work, name="video-stream", daemon=True)
@@ -306,7 +308,7 @@ class VideoStreamer:
         k = next((i for i, x in enumerate(nals) if x[0] & 0x1F in (1, 5)), len(nals))
         # and an access unit delimiter after them: FFmpeg's H.264 parser (which its RTP demuxer
         # runs) hands a frame on only when it sees the next one begin, a frame period late
-        # (108 ms at 10 Hz on loopback); the delimiter begins "the next" at once (14 ms)
+        # (108 ms at 10 Hz on loopback); the delimiter begins "the next" at once (4 ms)
         nals = [*nals[:k], sei, *nals[k:], AUD]
         for pkt in self.rtp.packets(nals, ts):
             self.bytes_sent += len(pkt)
@@ -315,6 +317,7 @@ class VideoStreamer:
             except OSError:  # nobody listening (ICMP refused) is no error for a stream
                 self.send_errors += 1
         self.frames_sent += 1
+        self.recent.append((t, frame))
 
     # -- describing the stream ----------------------------------------------------------
     def sdp(self, name: str = "uavsearch SITL camera") -> str:
