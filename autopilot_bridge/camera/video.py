@@ -58,7 +58,7 @@ class StampedFrame:
     frame: np.ndarray  # (H, W, 3) uint8 RGB at the camera's own size
     index: int  # decoded frames before this one
     arrived_wall: float  # time.time() when it was decoded
-    sent_wall: float | None  # the sender's time.time() when it went out (SITL streams only)
+    sent_wall: float | None  # the sender's time.time() at capture (SITL streams only): end-to-end latency
     decode_s: float  # wall seconds of decoding and converting this frame
     stamped: bool  # t came from the stream
 

@@ -14,9 +14,9 @@ The time stamps. Every frame carries its capture time on the simulated clock twi
     a random offset), for any RTP tool; FFmpeg's demuxer hides it (it rebases pts on the first
     packet it hears), so it alone cannot serve a receiver that joins late;
   - a user-data-unregistered SEI (H.264 payload type 5) before each picture, with the UUID
-    SEI_UUID and a JSON body {"t": sim_time_s (repr, exact), "n": frame index, "w", "h":
-    the camera's own size, "wall": sender's time.time()}, which FFmpeg hands the decoder's
-    frame as SEI_UNREGISTERED side data: the exact capture time of each decoded frame.
+    SEI_UUID and a JSON body {"t": sim_time_s (repr, exact), "n": frame index, "w", "h": the
+    camera's own size, "wall": the sender's time.time() at capture}, which FFmpeg hands the
+    decoder's frame as SEI_UNREGISTERED side data: the exact capture time of each frame.
 
 Packetised here (RFC 6184, packetization-mode 1: single NAL units, FU-A fragments; the marker
 bit on each access unit's last packet), rather than by FFmpeg's RTP muxer, which draws a random
@@ -242,7 +242,7 @@ class VideoStreamer:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
         self.addr = (cfg.host, cfg.port)
-        self._queue: deque[tuple[np.ndarray, float]] = deque()
+        self._queue: deque[tuple[np.ndarray, float, float]] = deque()
         self._cv = threading.Condition()
         self._stop = False
         self.frames_sent = 0
@@ -268,7 +268,7 @@ class VideoStreamer:
             if len(self._queue) >= MAX_QUEUED:
                 self._queue.popleft()
                 self.frames_dropped += 1
-            self._queue.append((frame, t))
+            self._queue.append((frame, t, time.time()))
             self._cv.notify()
 
     def close(self) -> None:
@@ -286,10 +286,10 @@ class VideoStreamer:
                 self._cv.wait_for(lambda: self._queue or self._stop)
                 if self._stop:
                     return
-                frame, t = self._queue.popleft()
+                frame, t, wall = self._queue.popleft()
             t0 = time.perf_counter()
             try:
-                self._send(frame, t, n)
+                self._send(frame, t, n, wall)
                 n += 1
             except Exception:  # a broken frame or a closed socket must not kill the stream
                 self.send_errors += 1
@@ -298,12 +298,12 @@ class VideoStreamer:
             if len(self.encode_s) > 10000:
                 del self.encode_s[:5000]
 
-    def _send(self, frame: np.ndarray, t: float, n: int) -> None:
+    def _send(self, frame: np.ndarray, t: float, n: int, wall: float) -> None:
         ts = rtp_timestamp(t)
         nals = self.encoder.encode(to_yuv420(frame, self.cfg.scale), round(t * RTP_CLOCK_HZ))
         if not nals:
             return
-        sei = time_sei({"t": t, "n": n, "w": self.width, "h": self.height, "wall": time.time()})
+        sei = time_sei({"t": t, "n": n, "w": self.width, "h": self.height, "wall": wall})
         # the SEI before the picture's slices, after any SPS/PPS (an access unit's order)
         k = next((i for i, x in enumerate(nals) if x[0] & 0x1F in (1, 5)), len(nals))
         # and an access unit delimiter after them: FFmpeg's H.264 parser (which its RTP demuxer
