@@ -7,8 +7,11 @@ decision that wants the picture of simulated time t finds it however the stream 
 decision loop drift (`wait(t)`: the first frame captured at or after t). The stamp is the
 capture time the stream carries: our SITL puts each frame's simulated capture time in a
 user-data-unregistered SEI (UUID SEI_UUID, a JSON body {"t": ..., "w", "h": the camera's own
-size, ...}; sim/mavlink/video.py), which FFmpeg hands over as frame side data. A stream
-without it (a real camera) is stamped on arrival, on the `clock` the companion asks in.
+size, a CRC of the lossless frame; sim/mavlink/video.py), which FFmpeg hands over as frame
+side data. A stream without it (a real camera) is stamped on arrival, on the `clock` the
+companion asks in. Frames damaged by lost packets (the CRC does not match, or FFmpeg flags them)
+and frames of a stamped stream whose stamp was lost are left out, counted: a decision waits for
+the next whole one rather than decide on a wrong picture or a wrong time.
 
 Our SITL scales its 50 px frames up by an integer factor so H.264's 4:2:0 chroma keeps every
 camera pixel's colour; the SEI names the camera's size and each block is averaged back and
@@ -29,6 +32,7 @@ import re
 import tempfile
 import threading
 import time
+import zlib
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -181,7 +185,10 @@ class VideoSource:
         self.container = None
         self.error: VideoSourceError | None = None  # why the stream could not be opened or read
         self.decoded = 0
-        self.errors = 0
+        self.errors = 0  # packets that did not decode
+        self.corrupt = 0  # frames damaged by losses (FFmpeg's flag, or the SITL's CRC), left out
+        self.unstamped = 0  # frames of a stamping stream whose stamp was lost, left out
+        self._stamps_seen = False
         self.requests = 0
         self.ended = False  # a file played to its end, or the stream broke
         self._thread = threading.Thread(target=self._run, name="video-source", daemon=True)
@@ -242,13 +249,24 @@ class VideoSource:
                 self.errors += 1
 
     def _keep(self, frame, t0: float) -> None:
+        if frame.is_corrupt:  # concealed loss (a packet missing here or in a reference): not a picture to decide on
+            self.corrupt += 1
+            return
         body = None
         for sd in frame.side_data:
             if "SEI_UNREGISTERED" in str(sd.type):
                 body = read_sei_stamp(bytes(sd)) or body
+        if body is None and self._stamps_seen:  # its stamp was lost on the way: no time to put on it
+            self.unstamped += 1
+            return
+        self._stamps_seen = self._stamps_seen or body is not None
         rgb = None
         if body is not None and frame.format.name == "yuv420p":
-            rgb = yuv420_to_rgb(frame.to_ndarray(), int(body.get("w", 0)), int(body.get("h", 0)))
+            yuv = frame.to_ndarray()
+            if "crc" in body and zlib.crc32(yuv.tobytes()) != body["crc"]:  # damaged by a lost packet
+                self.corrupt += 1
+                return
+            rgb = yuv420_to_rgb(yuv, int(body.get("w", 0)), int(body.get("h", 0)))
         if rgb is None:
             rgb = frame.to_ndarray(format="rgb24")
         if body is not None:

@@ -158,7 +158,7 @@ def register(app: typer.Typer) -> None:
                                          uri, sdp_name), seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
-            typer.echo(f"    companion           uavsearch run --field {fpath}")
+            typer.echo(f"    companion           uavsearch run --field {fpath}" + (" [--camera video]" if uri else ""))
         if key is not None:
             typer.echo("MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: `signing key` with "
                        "the file's passphrase, or the same 32-byte key).")

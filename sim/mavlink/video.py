@@ -15,8 +15,12 @@ The time stamps. Every frame carries its capture time on the simulated clock twi
     packet it hears), so it alone cannot serve a receiver that joins late;
   - a user-data-unregistered SEI (H.264 payload type 5) before each picture, with the UUID
     SEI_UUID and a JSON body {"t": sim_time_s (repr, exact), "n": frame index, "w", "h": the
-    camera's own size, "wall": the sender's time.time() at capture}, which FFmpeg hands the
-    decoder's frame as SEI_UNREGISTERED side data: the exact capture time of each frame.
+    camera's own size, "wall": the sender's time.time() at capture, "crc": CRC-32 of the
+    frame's Y, U, V planes when the encoding is lossless}, which FFmpeg hands the decoder's
+    frame as SEI_UNREGISTERED side data: the exact capture time of each frame, and a check
+    that the decoded frame is the captured one. A lost packet damages its frame and, through
+    prediction, those after it up to the next keyframe; FFmpeg conceals the damage and flags
+    few of them (2 of 17 damaged frames at 2 % loss), the CRC catches every one.
 
 Packetised here (RFC 6184, packetization-mode 1: single NAL units, FU-A fragments; the marker
 bit on each access unit's last packet), rather than by FFmpeg's RTP muxer, which draws a random
@@ -33,6 +37,7 @@ import math
 import socket
 import threading
 import time
+import zlib
 from collections import deque
 from dataclasses import dataclass
 from fractions import Fraction
@@ -300,10 +305,14 @@ class VideoStreamer:
 
     def _send(self, frame: np.ndarray, t: float, n: int, wall: float) -> None:
         ts = rtp_timestamp(t)
-        nals = self.encoder.encode(to_yuv420(frame, self.cfg.scale), round(t * RTP_CLOCK_HZ))
+        yuv = to_yuv420(frame, self.cfg.scale)
+        nals = self.encoder.encode(yuv, round(t * RTP_CLOCK_HZ))
         if not nals:
             return
-        sei = time_sei({"t": t, "n": n, "w": self.width, "h": self.height, "wall": wall})
+        body = {"t": t, "n": n, "w": self.width, "h": self.height, "wall": wall}
+        if self.cfg.qp == 0:  # lossless: the decoded planes are these bytes, or the frame was damaged
+            body["crc"] = zlib.crc32(yuv.tobytes())
+        sei = time_sei(body)
         # the SEI before the picture's slices, after any SPS/PPS (an access unit's order)
         k = next((i for i, x in enumerate(nals) if x[0] & 0x1F in (1, 5)), len(nals))
         # and an access unit delimiter after them: FFmpeg's H.264 parser (which its RTP demuxer

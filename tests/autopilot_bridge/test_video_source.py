@@ -4,6 +4,7 @@ a bad URL or a missing SDP is one clear error naming it. Real UDP on loopback (2
 
 from __future__ import annotations
 
+import socket
 import threading
 import time
 from pathlib import Path
@@ -135,3 +136,51 @@ def test_bad_urls_and_missing_sdp_are_one_clear_error(tmp_path: Path) -> None:
     with VideoSource("rtsp://127.0.0.1:27105/camera") as src:  # nobody serves RTSP there
         with pytest.raises(VideoSourceError, match=r"camera rtsp://127.0.0.1:27105/camera: cannot read the stream"):
             src.first_frame(5.0)
+
+
+def test_frames_damaged_by_lost_packets_are_left_out(tmp_path: Path) -> None:
+    """A forwarder drops every 12th RTP packet: each frame VideoSource keeps is the one sent at
+    its time (the SITL's CRC of the lossless frame; FFmpeg conceals the damage silently)."""
+    frames = []
+    for k in range(7):  # grass and a cow that walks
+        f = np.full((50, 50, 3), (70, 140, 60), np.uint8)
+        f[10 + 4 * k:22 + 4 * k, 5 + 5 * k:13 + 5 * k] = (120, 70, 40)
+        frames.append(f)
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 27110))
+    rx.settimeout(0.1)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    stop = threading.Event()
+
+    def forward() -> None:
+        k = 0
+        while not stop.is_set():
+            try:
+                data = rx.recv(65536)
+            except TimeoutError:
+                continue
+            k += 1
+            if k % 12:
+                tx.sendto(data, ("127.0.0.1", 27111))
+
+    fwd = threading.Thread(target=forward, daemon=True)
+    fwd.start()
+    st = VideoStreamer(VideoConfig(port=27110, mtu=200), 50, 50)
+    sdp = tmp_path / "camera.sdp"
+    sdp.write_text(st.sdp().replace("m=video 27110", "m=video 27111"))
+    feed = Feed(st, frames)
+    try:
+        with VideoSource("udp://:27111", sdp) as src:
+            first = src.first_frame(10.0)
+            src.wait_frame(first.t + 3.0, 10.0)
+            got = list(src._ring)
+            left_out = src.corrupt + src.unstamped
+    finally:
+        feed.close()
+        stop.set()
+        fwd.join()
+        rx.close()
+        tx.close()
+    assert len(got) >= 5 and left_out >= 3
+    for g in got:
+        assert np.abs(g.frame.astype(int) - feed.sent[round(g.t, 6)]).max() <= 1, f"frame at {g.t}"
