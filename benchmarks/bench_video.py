@@ -157,7 +157,7 @@ def latency(seconds: float) -> None:
           f"encoder thread (encode + packetise + send) {pct(sitl.video.encode_s)}")
 
 
-def real_time_factor(speedup: float, video: bool, seconds: float = 3.0) -> tuple[float, int]:
+def real_time_factor(speedup: float, video: bool, seconds: float = 3.0) -> tuple[float, tuple[int, int]]:
     port = BASE_PORT + 10 + int(video)
     cfg = SitlConfig(physics="pybullet", speedup=speedup, gcs_link=False, api_local_port=BASE_PORT + 20,
                      api_remote_port=BASE_PORT + 21, video=VideoConfig(port=port) if video else VideoConfig())
@@ -166,7 +166,7 @@ def real_time_factor(speedup: float, video: bool, seconds: float = 3.0) -> tuple
     sitl.start()
     time.sleep(seconds)
     factor = sitl.t / (time.monotonic() - w0)
-    dropped = sitl.video.frames_dropped if sitl.video else 0
+    dropped = (sitl.video.frames_dropped, sitl.video.frames_skipped) if sitl.video else (0, 0)
     sitl.stop()
     return factor, dropped
 
@@ -176,11 +176,13 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=20.0)
     args = ap.parse_args()
     latency(args.seconds)
-    print("  SITL real-time factor (video off / on; frames the encoder dropped):")
+    print("  SITL real-time factor (video off / on; frames the encoder dropped, lattice frames skipped "
+          "past max_wall_hz):")
     for s in (1.0, 5.0, 20.0, 0.0):
         off, _ = real_time_factor(s, False)
         on, dropped = real_time_factor(s, True)
-        print(f"    speedup {s:4g}{' (max)' if s == 0 else '      '}: {off:6.1f}x / {on:6.1f}x  ({dropped} dropped)")
+        print(f"    speedup {s:4g}{' (max)' if s == 0 else '      '}: {off:6.1f}x / {on:6.1f}x  "
+              f"({dropped[0]} dropped, {dropped[1]} skipped)")
 
 
 if __name__ == "__main__":

@@ -77,6 +77,10 @@ class VideoConfig:
     keyint: int = 10  # a keyframe every this many frames (1 s at 10 Hz)
     preset: str = "ultrafast"
     mtu: int = 1200  # bytes of RTP payload per datagram at most
+    #: at most this many frames per wall-clock second: a simulation running faster than
+    #: max_wall_hz / rate_hz (10x at the defaults) leaves lattice frames out rather than spend its
+    #: time rendering them (as fast as it goes, 276x without the stream, 43x rendering them all)
+    max_wall_hz: float = 100.0
     ssrc: int = 0x55415653
 
     def __post_init__(self) -> None:
@@ -90,6 +94,8 @@ class VideoConfig:
             raise ValueError(f"video qp must be 0..51 (got {self.qp})")
         if not 1 <= self.keyint <= 600:
             raise ValueError(f"video keyint must be 1..600 frames (got {self.keyint})")
+        if not self.max_wall_hz > 0:
+            raise ValueError(f"video max_wall_hz must be > 0 (got {self.max_wall_hz})")
         if not 200 <= self.mtu <= 65000:
             raise ValueError(f"video mtu must be 200..65000 bytes (got {self.mtu})")
         try:
@@ -258,17 +264,28 @@ class VideoStreamer:
         self.recent: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
         self.encode_s: list[float] = []  # wall seconds per frame: scale + encode + packetise + send
         self._next_t = 0.0  # the next frame's time on the lattice k / rate_hz
+        self._next_wall = 0.0  # no frame before this (time.monotonic(): max_wall_hz)
+        self.frames_skipped = 0  # lattice frames left out: the simulation ran past max_wall_hz
         self._thread = threading.Thread(target=self._work, name="video-stream", daemon=True)
         self._thread.start()
 
     # -- the simulation's side ---------------------------------------------------------
     def due(self, t: float) -> bool:
-        """A frame is due at simulated time t (the lattice k / rate_hz, first tick on or after)."""
-        return t + 1e-9 >= self._next_t
+        """A frame is due at simulated time t (the lattice k / rate_hz, first tick on or after),
+        unless the last one went out less than 1 / max_wall_hz wall seconds ago (then this
+        lattice point is left out, counted in frames_skipped)."""
+        if t + 1e-9 < self._next_t:
+            return False
+        if time.monotonic() < self._next_wall:
+            self._next_t = (math.floor(t * self.cfg.rate_hz + 1e-6) + 1) / self.cfg.rate_hz
+            self.frames_skipped += 1
+            return False
+        return True
 
     def submit(self, frame: np.ndarray, t: float) -> None:
         """Queue a frame captured at simulated time t; never blocks."""
         self._next_t = (math.floor(t * self.cfg.rate_hz + 1e-6) + 1) / self.cfg.rate_hz
+        self._next_wall = time.monotonic() + 1.0 / self.cfg.max_wall_hz
         with self._cv:
             if len(self._queue) >= MAX_QUEUED:
                 self._queue.popleft()

@@ -74,7 +74,7 @@ def test_config_and_sdp() -> None:
 
 
 def test_sitl_stream_decodes_with_exact_capture_times(tmp_path: Path) -> None:
-    cfg = SitlConfig(physics="kinematic", camera=True, speedup=10.0, gcs_link=False,
+    cfg = SitlConfig(physics="kinematic", camera=True, speedup=5.0, gcs_link=False,
                      api_local_port=27011, api_remote_port=27012, video=VideoConfig(port=27013))
     with Sitl(cfg) as sitl:
         sdp = sitl.video.write_sdp(tmp_path / "camera.sdp")
