@@ -84,7 +84,7 @@ def describe(url: str, sdp: str | os.PathLike | None = None) -> _Input:
     if parts.scheme in ("udp", "rtp"):
         if sdp is None:
             raise VideoSourceError(f"camera {url}: an RTP stream needs its SDP file (uavsearch sitl writes it "
-                                   "next to the field file and names it there: give --field, or the .sdp path)")
+                                   "next to the field file and names it there: run --field FILE, or --video-sdp PATH)")
         path = Path(sdp)
         try:
             text = path.read_text()
