@@ -65,7 +65,8 @@ def register(app: typer.Typer) -> None:
         video_port: str = typer.Option(
             "0", "--video-port",
             help="Stream the camera as RTP/H.264 to this UDP port (5600: QGroundControl's 'UDP h.264 Video "
-                 "Stream'; 0 or none: off); instance N streams to PORT+N. An SDP file goes next to the field file."),
+                 "Stream'; 0 or none: off); instance N streams to PORT+2N (a receiver takes PORT+1 for RTCP). "
+                 "An SDP file goes next to the field file."),
         video_host: str = typer.Option("127.0.0.1", "--video-host", help="Where the video stream is sent (IPv4)."),
         video_rate: float = typer.Option(10.0, "--video-rate", help="Video frames per simulated second."),
     ) -> None:
@@ -115,8 +116,8 @@ def register(app: typer.Typer) -> None:
             except ValueError:
                 raise typer.BadParameter(f"{video_port!r}: a UDP port, or 0 / none for no video",
                                          param_hint="--video-port") from None
-        if vport and not 1 <= vport <= 65535 - count:
-            raise typer.BadParameter(f"{vport}: must be a UDP port 1..{65535 - count}", param_hint="--video-port")
+        if vport and not 1 <= vport <= 65534 - 2 * count:
+            raise typer.BadParameter(f"{vport}: must be a UDP port 1..{65534 - 2 * count}", param_hint="--video-port")
         cfgs = []
         for n in range(instance, instance + count):
             try:
@@ -130,7 +131,7 @@ def register(app: typer.Typer) -> None:
                         f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
             try:
-                video = VideoConfig(port=vport + n - instance if vport else 0, host=video_host, rate_hz=video_rate)
+                video = VideoConfig(port=vport + 2 * (n - instance) if vport else 0, host=video_host, rate_hz=video_rate)
             except ValueError as e:
                 raise typer.BadParameter(str(e), param_hint="--video-port/--video-host/--video-rate") from e
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,

@@ -248,12 +248,14 @@ class Sitl(BackgroundRunner):
         self.vehicle.tick(self.t)
         self._stream_video()
 
-    def _stream_video(self) -> None:
-        """Render the video stream's frame when one is due (simulated time); the encoder's
+    def _stream_video(self, t: float | None = None) -> None:
+        """Render the video stream's frame when one is due at simulated time t (default: this
+        vehicle's; a fleet passes its own, its quiet vehicles not being ticked); the encoder's
         thread does the rest."""
-        if self.video is not None and self.video.due(self.t):
+        t = self.t if t is None else t
+        if self.video is not None and self.video.due(t):
             s = self.model.state
-            self.video.submit(self._render(s.position_ned.copy(), float(s.attitude_rpy[2])), self.t)
+            self.video.submit(self._render(s.position_ned.copy(), float(s.attitude_rpy[2])), t)
 
     def _note_arming(self) -> None:
         if self._motion_t0 is None and self.model.state.armed:
@@ -268,7 +270,6 @@ class Sitl(BackgroundRunner):
         self._note_arming()
         try:
             self.vehicle.tick(t, serve, sampled)
-            self._stream_video()
         except Exception:
             self.errors.append(traceback.format_exc())
             log.exception("SITL %d tick failed at t=%.2f", self.cfg.instance, t)

@@ -98,3 +98,20 @@ def test_sitl_stream_decodes_with_exact_capture_times(tmp_path: Path) -> None:
     lattice = np.array([g.t for g in got]) * 10
     assert np.all(lattice - np.floor(lattice + 1e-6) < 0.2 + 1e-6)  # the first tick at or after k / 10 s
     assert np.all(np.diff([g.t for g in got]) > 0.09)
+
+
+def test_each_fleet_vehicle_streams_its_own_camera(tmp_path: Path) -> None:
+    from sim.mavlink import SitlFleet
+
+    cfgs = [SitlConfig(instance=i, physics="kinematic", camera=True, speedup=5.0, gcs_link=False,
+                       api_local_port=27050 + 2 * i, api_remote_port=27051 + 2 * i,
+                       video=VideoConfig(port=27060 + 2 * i)) for i in range(2)]
+    with SitlFleet(cfgs) as fleet:
+        srcs = [VideoSource(f"udp://:{27060 + 2 * i}", fleet[i].video.write_sdp(tmp_path / f"c{i}.sdp"))
+                for i in range(2)]
+        try:
+            firsts = [s.first_frame(10.0) for s in srcs]
+        finally:
+            for s in srcs:
+                s.close()
+    assert all(f.stamped and f.t > 0 for f in firsts)
