@@ -188,6 +188,7 @@ class VideoSource:
         self.errors = 0  # packets that did not decode
         self.corrupt = 0  # frames damaged by losses (FFmpeg's flag, or the SITL's CRC), left out
         self.unstamped = 0  # frames of a stamping stream whose stamp was lost, left out
+        self.restarts = 0  # the stream's clock ran backwards (a new SITL): the ring was emptied
         self._stamps_seen = False
         self.requests = 0
         self.ended = False  # a file played to its end, or the stream broke
@@ -276,6 +277,10 @@ class VideoSource:
         got = StampedFrame(t, rgb, self.decoded, time.time(), sent if isinstance(sent, int | float) else None,
                            time.perf_counter() - t0, stamped)
         with self._cv:
+            if stamped and self._ring and self._ring[-1].stamped and t < self._ring[-1].t - 1e-6:
+                # time ran backwards: the SITL was restarted; its old frames are of another flight
+                self._ring.clear()
+                self.restarts += 1
             self._ring.append(got)
             self.decoded += 1
             self._cv.notify_all()

@@ -184,3 +184,26 @@ def test_frames_damaged_by_lost_packets_are_left_out(tmp_path: Path) -> None:
     assert len(got) >= 5 and left_out >= 3
     for g in got:
         assert np.abs(g.frame.astype(int) - feed.sent[round(g.t, 6)]).max() <= 1, f"frame at {g.t}"
+
+
+def test_a_restarted_stream_empties_the_ring(tmp_path: Path) -> None:
+    """A new SITL on the same port starts its clock at 0 again: the old flight's frames must not
+    answer the new flight's wait(t)."""
+    frame = np.full((50, 50, 3), (70, 140, 60), np.uint8)
+    sdp = tmp_path / "camera.sdp"
+    st = VideoStreamer(VideoConfig(port=27120), 50, 50)
+    st.write_sdp(sdp)
+    with VideoSource("udp://:27120", sdp) as src:
+        for k in range(25):
+            st.submit(frame, 10.0 + 0.1 * k)
+            time.sleep(0.02)
+        assert src.wait_frame(12.0, 5.0) is not None
+        st.close()
+        st = VideoStreamer(VideoConfig(port=27120), 50, 50)
+        for k in range(15):
+            st.submit(frame, 0.1 * k)
+            time.sleep(0.02)
+        f = src.wait_frame(0.5, 5.0)
+        st.close()
+        assert f is not None and f.t == pytest.approx(0.5) and src.restarts == 1
+        assert all(g.t < 2.0 for g in src._ring)
