@@ -1,6 +1,7 @@
 """A camera source that decodes a video stream, as a companion computer takes a real drone's
 camera: RTP/H.264 on UDP (PX4 Gazebo's and our SITL's port 5600, described by an SDP file),
-RTSP, a V4L2 device (/dev/videoN) or a video file: anything PyAV (FFmpeg) opens.
+RTSP, a V4L2 device (/dev/videoN) or a video file (played at its own pace): anything PyAV
+(FFmpeg) opens.
 
 Frames are decoded on a thread of their own and kept, stamped, in a short ring buffer, so a
 decision that wants the picture of simulated time t finds it however the stream and the
@@ -73,6 +74,7 @@ class _Input:
     format: str | None
     options: dict[str, str]
     temp: Path | None = None  # a rewritten SDP, removed on close
+    live: bool = True  # False: a file, played at its own pace (its frames' times) rather than as fast as it decodes
 
 
 def describe(url: str, sdp: str | os.PathLike | None = None) -> _Input:
@@ -119,7 +121,7 @@ def describe(url: str, sdp: str | os.PathLike | None = None) -> _Input:
     if parts.scheme in ("", "file") and not Path(parts.path if parts.scheme else url).exists():
         raise VideoSourceError(f"camera {url}: no such file (give a video file, /dev/videoN, rtsp://... or "
                                "udp://:PORT with its SDP)")
-    return _Input(url, None, {})
+    return _Input(url, None, {}, live=parts.scheme not in ("", "file"))
 
 
 def read_sei_stamp(data: bytes) -> dict | None:
@@ -234,6 +236,7 @@ class VideoSource:
     def _decode_loop(self, container, stream) -> None:
         import av
 
+        start: tuple[float, float] | None = None  # a file's (first frame's time, wall clock then)
         while not self._stop.is_set():
             try:
                 for packet in container.demux(stream):
@@ -241,6 +244,12 @@ class VideoSource:
                         return
                     t0 = time.perf_counter()
                     for frame in packet.decode():
+                        if not self._in.live and frame.time is not None:  # a file: at its own pace
+                            start = start or (frame.time, time.monotonic())
+                            lag = start[1] + frame.time - start[0] - time.monotonic()
+                            if lag > 0 and self._stop.wait(lag):
+                                return
+                            t0 = time.perf_counter()
                         self._keep(frame, t0)
                 else:
                     return  # end of file

@@ -207,3 +207,27 @@ def test_a_restarted_stream_empties_the_ring(tmp_path: Path) -> None:
         st.close()
         assert f is not None and f.t == pytest.approx(0.5) and src.restarts == 1
         assert all(g.t < 2.0 for g in src._ring)
+
+
+def test_a_video_file_plays_at_its_pace_stamped_on_the_clock(tmp_path: Path) -> None:
+    import av
+
+    path = tmp_path / "clip.mp4"
+    with av.open(str(path), "w") as out:
+        s = out.add_stream("libx264", rate=20)
+        s.width, s.height, s.pix_fmt = 64, 48, "yuv420p"
+        for k in range(10):  # half a second
+            rgb = np.full((48, 64, 3), (10 * k, 120, 60), np.uint8)
+            for p in s.encode(av.VideoFrame.from_ndarray(rgb, format="rgb24")):
+                out.mux(p)
+        for p in s.encode():
+            out.mux(p)
+    clock = [100.0]
+    t0 = time.monotonic()
+    with VideoSource(str(path), clock=lambda: clock[0]) as src:
+        first = src.first_frame(5.0)
+        assert not first.stamped and first.t == 100.0 and first.frame.shape == (48, 64, 3)
+        assert src.request(2.0, 1) is not None  # a later frame comes
+        while not src.ended and time.monotonic() - t0 < 5:
+            time.sleep(0.05)
+    assert src.decoded == 10 and time.monotonic() - t0 >= 0.4  # not all at once
