@@ -148,7 +148,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     with the same policy on the same episode in the grid world, and the position posterior with
     the truth (NEES). free_ports: ports the OS hands out (parallel flights beside other tests).
     camera: "mavlink" (the vehicle's MAVLink camera) or "video" (its RTP/H.264 stream on a free
-    port, decoded by autopilot_bridge.camera.video; no timed captures, so no lockstep hold)."""
+    port, decoded by autopilot_bridge.camera.video; with lockstep, captures are asked for over
+    MAVLink, which holds the SITL at each, as with the MAVLink camera)."""
     if camera not in ("mavlink", "video"):
         raise ValueError(f"camera must be 'mavlink' or 'video' (got {camera!r})")
     from autopilot_bridge.link import VehicleLink
@@ -200,8 +201,14 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     try:
         if video.enabled:
             from autopilot_bridge.camera.video import VideoSource
+            from autopilot_bridge.link import mavlink
 
-            frames = VideoSource(f"udp://:{video.port}", sitl.video.write_sdp(out / "camera.sdp"))
+            def ask(at_s: float) -> None:  # a timed capture: what holds a lockstep SITL at at_s
+                link.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE,
+                             float(at_s))
+
+            frames = VideoSource(f"udp://:{video.port}", sitl.video.write_sdp(out / "camera.sdp"),
+                                 asker=ask if lockstep else None)
         with FlightProgress(f"flight ({pol.name})") if progress else _nothing() as bar:
             service = PolicyService(link, pol, spec, seed=seed, on_progress=bar, frames=frames)
             end = guarded_search(service, link, on_abort)

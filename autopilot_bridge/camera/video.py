@@ -173,13 +173,19 @@ class VideoSource:
     timed_captures = False
 
     def __init__(self, url: str, sdp: str | os.PathLike | None = None,
-                 clock: Callable[[], float] = time.monotonic, ring: int = RING_FRAMES) -> None:
+                 clock: Callable[[], float] = time.monotonic, ring: int = RING_FRAMES,
+                 asker: Callable[[float], None] | None = None) -> None:
         """clock: the time scale of `wait(at_s)` for frames the stream does not stamp (in a
         flight: the simulated time telemetry carries); stamped frames use the stream's.
+        asker: asks the vehicle for a capture at a simulated instant (over MAVLink: what holds a
+        companion-lockstep SITL there, which then streams that instant's frame too); with one,
+        ask() calls it and timed_captures is True, so a video flight is flown on the simulated
+        clock as a MAVLink-camera one. Only a simulation has that; a real stream has none.
         What is wrong with the URL or SDP raises here; the stream is opened on the decoding
         thread (FFmpeg's open of an RTP stream waits for its first packets): first_frame()
         raises what went wrong there."""
-        self.url, self.clock = url, clock
+        self.url, self.clock, self.asker = url, clock, asker
+        self.timed_captures = asker is not None
         self._in = describe(url, sdp)
         self._ring: deque[StampedFrame] = deque(maxlen=ring)
         self._cv = threading.Condition()
@@ -296,7 +302,10 @@ class VideoSource:
 
     # -- the FrameRequester's methods ---------------------------------------------------
     def ask(self, at_s: float) -> None:
-        """Nothing to ask of a stream: the frame of at_s comes by itself."""
+        """Nothing to ask of a stream: the frame of at_s comes by itself (with an asker: ask
+        the vehicle to capture, and hold, there)."""
+        if self.asker is not None:
+            self.asker(at_s)
 
     def frame_at(self, at_s: float) -> StampedFrame | None:
         """The first frame in the ring captured at or after at_s, None if none yet."""
@@ -329,10 +338,17 @@ class VideoSource:
         return (f.frame, f.t) if f is not None else (None, None)
 
     def capture(self, at_s: float, timeout: float = 1.5, tries: int = 8) -> tuple[np.ndarray | None, float | None]:
-        """The frame of simulated time at_s: as wait, for up to timeout * tries seconds (a
-        stream cannot be asked again; the waits add up to the MAVLink requester's)."""
+        """The frame of simulated time at_s: as wait, for up to timeout * tries seconds (the
+        MAVLink requester's waits; with an asker, asked again each `timeout`, as it does)."""
         self.requests += 1
-        return self.wait(at_s, timeout * tries)
+        if self.asker is None:
+            return self.wait(at_s, timeout * tries)
+        for _ in range(tries):  # asked as the MAVLink requester asks, so a lockstep SITL holds alike
+            self.ask(at_s)
+            frame, t = self.wait(at_s, timeout)
+            if frame is not None:
+                return frame, t
+        return None, None
 
     def request(self, timeout: float = 1.5, tries: int = 8) -> np.ndarray | None:
         """A frame decoded after this call, or None within timeout * tries seconds."""

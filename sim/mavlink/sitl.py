@@ -174,6 +174,7 @@ class Sitl(BackgroundRunner):
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
             camera = self._render
         self.video: VideoStreamer | None = None
+        self._video_held = False  # the vehicle held for the companion at the last video check
         if cfg.video.enabled and camera is not None:
             self.video = VideoStreamer(cfg.video, cfg.camera_px, cfg.camera_px)
         self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None
@@ -252,8 +253,15 @@ class Sitl(BackgroundRunner):
         """Render the video stream's frame when one is due at simulated time t (default: this
         vehicle's; a fleet passes its own, its quiet vehicles not being ticked); the encoder's
         thread does the rest."""
+        if self.video is None:
+            return
         t = self.t if t is None else t
-        if self.video is not None and self.video.due(t):
+        # a companion-lockstep hold (at a capture asked for ahead) starts on this tick: its frame
+        # goes out whether or not the tick is on the stream's lattice, or the companion, waiting
+        # for the frame of its instant, would wait out the hold
+        held = self.vehicle.hold_for_companion
+        hold_starts, self._video_held = held and not self._video_held, held
+        if hold_starts or self.video.due(t):
             s = self.model.state
             self.video.submit(self._render(s.position_ned.copy(), float(s.attitude_rpy[2])), t)
 
