@@ -69,6 +69,9 @@ def register(app: typer.Typer) -> None:
                  "An SDP file goes next to the field file."),
         video_host: str = typer.Option("127.0.0.1", "--video-host", help="Where the video stream is sent (IPv4)."),
         video_rate: float = typer.Option(10.0, "--video-rate", help="Video frames per simulated second."),
+        video_qp: int = typer.Option(
+            0, "--video-qp", help="H.264 quantiser: 0 lossless (High 4:4:4 Predictive; FFmpeg and software "
+            "decoders), 4 High profile for hardware decoders (colours within 5 levels)."),
     ) -> None:
         """Start SITL vehicles (PX4 flavour) and print how to connect to them."""
         from missions.fieldfile import FieldSpec, write_field
@@ -131,9 +134,10 @@ def register(app: typer.Typer) -> None:
                         f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
             try:
-                video = VideoConfig(port=vport + 2 * (n - instance) if vport else 0, host=video_host, rate_hz=video_rate)
+                video = VideoConfig(port=vport + 2 * (n - instance) if vport else 0, host=video_host, rate_hz=video_rate,
+                                    qp=video_qp)
             except ValueError as e:
-                raise typer.BadParameter(str(e), param_hint="--video-port/--video-host/--video-rate") from e
+                raise typer.BadParameter(str(e), param_hint="--video-port/--video-host/--video-rate/--video-qp") from e
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
                              target_step_s=target_step_s, field_edge=field_edge,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
