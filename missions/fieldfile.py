@@ -38,6 +38,10 @@ class FieldSpec:
     #: the autopilot family the vehicle speaks as (`sitl --dialect`): the companion picks its
     #: dialect by it; files written before dialects existed read as px4
     dialect: str = "px4"
+    #: the camera's video stream (`sitl --video-port`): what `run --camera video` opens and
+    #: the SDP file describing it (written next to the field file; relative to it)
+    video_uri: str | None = None
+    video_sdp: str | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -50,7 +54,8 @@ class FieldSpec:
                 "targets": self.grid.n_targets, "distribution": self.grid.distribution,
                 "motion": self.grid.motion, "target_period": self.grid.target_period,
                 "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
-                "dialect": self.dialect}
+                "dialect": self.dialect,
+                "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp}}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -84,4 +89,14 @@ def read_field(path: Path) -> FieldSpec:
     dialect = d.get("dialect", "px4")  # field files written before dialects: PX4's
     if dialect not in DIALECTS:
         raise FieldFileError(f"field file {path}: dialect must be one of {', '.join(DIALECTS)} (got {dialect!r})")
-    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect)
+    video = d.get("video")  # field files written before the video stream: none
+    uri = sdp = None
+    if video is not None:
+        if not isinstance(video, dict) or not isinstance(video.get("uri"), str) or \
+                not isinstance(video.get("sdp"), str | None):
+            raise FieldFileError(f"field file {path}: video must be {{\"uri\": ..., \"sdp\": ...}} (got {video!r})")
+        uri, sdp = video["uri"], video.get("sdp")
+        if sdp is not None and not Path(sdp).is_absolute():
+            sdp = str(Path(path).parent / sdp)
+    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
+                     video_uri=uri, video_sdp=sdp)

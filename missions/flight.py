@@ -137,7 +137,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                grid: GridConfig | None = None, instance: int = 0, max_moves: int | None = None,
                policy: str | None = None, on_abort: str = "rtl", progress: bool = False,
                physics: str = "pybullet", gps_sigma_m: float | None = None, visit_map: str = "probabilistic",
-               free_ports: bool = False, plot: bool = True, lockstep: bool = True) -> dict[str, Any]:
+               free_ports: bool = False, plot: bool = True, lockstep: bool = True,
+               camera: str = "mavlink") -> dict[str, Any]:
     """Start SITL in-process, fly a policy (default: the best shipped one) over MAVLink, write
     report + plot + tlog. Any failure or Ctrl-C brings the vehicle down first (missions.guarded);
     report['outcome'] says how the flight ended, report['error'] what stopped it, if anything.
@@ -145,7 +146,12 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     The policy and the companion's link exist before the vehicle starts, so the flight's
     simulated schedule does not depend on how long loading took. The report compares the flight
     with the same policy on the same episode in the grid world, and the position posterior with
-    the truth (NEES). free_ports: ports the OS hands out (parallel flights beside other tests)."""
+    the truth (NEES). free_ports: ports the OS hands out (parallel flights beside other tests).
+    camera: "mavlink" (the vehicle's MAVLink camera) or "video" (its RTP/H.264 stream on a free
+    port, decoded by autopilot_bridge.camera.video; with lockstep, captures are asked for over
+    MAVLink, which holds the SITL at each, as with the MAVLink camera)."""
+    if camera not in ("mavlink", "video"):
+        raise ValueError(f"camera must be 'mavlink' or 'video' (got {camera!r})")
     from autopilot_bridge.link import VehicleLink
     from autopilot_bridge.service import PolicyService, SearchSpec, save_log
     from missions.flight_policy import flight_policy
@@ -163,9 +169,12 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
         ports = dict(zip(("api_local_port", "api_remote_port", "gcs_local_port", "gcs_remote_port"),
                          _free_udp_ports(4), strict=True))
     gps = gps_config(gps_sigma_m)
+    from sim.mavlink.video import VideoConfig
+
+    video = VideoConfig(port=_free_udp_ports(1)[0]) if camera == "video" else VideoConfig()
     cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=grid,
                      episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True, gps=gps,
-                     companion_lockstep=lockstep, **ports)
+                     companion_lockstep=lockstep, video=video, **ports)
     link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
     try:
         sitl = _truth_sitl(cfg).start()
@@ -188,9 +197,20 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves, visit_map=visit_map,
                       field_edge=cfg.field_edge)
     t0 = time.monotonic()
+    frames = None
     try:
+        if video.enabled:
+            from autopilot_bridge.camera.video import VideoSource
+            from autopilot_bridge.link import mavlink
+
+            def ask(at_s: float) -> None:  # a timed capture: what holds a lockstep SITL at at_s
+                link.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE,
+                             float(at_s))
+
+            frames = VideoSource(f"udp://:{video.port}", sitl.video.write_sdp(out / "camera.sdp"),
+                                 asker=ask if lockstep else None)
         with FlightProgress(f"flight ({pol.name})") if progress else _nothing() as bar:
-            service = PolicyService(link, pol, spec, seed=seed, on_progress=bar)
+            service = PolicyService(link, pol, spec, seed=seed, on_progress=bar, frames=frames)
             end = guarded_search(service, link, on_abort)
         log = end.log
         error = None if end.exit_code in (EXIT_OK, EXIT_SHORT) else end.cause
@@ -199,6 +219,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
         watcher.join()
         sim_time = sitl.t
         link.close()
+        if frames is not None:
+            frames.close()
         sitl.stop()
     targets = sitl.episode.targets[0]
     n = min(len(track), len(herd))
@@ -230,6 +252,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    true_height_m=(np.round(np.interp(log.times_s, truth[:, 0], sitl.height[:len(truth)]), 3).tolist()
                                   if len(truth) and log.times_s else []),
                    nees_mean=cons["nees_mean"], nees_inside_95=cons["inside_95"], nees=cons["nees"],
+                   camera=camera, video_frames_dropped=sitl.video.frames_dropped if sitl.video else None,
                    sitl_errors=len(sitl.errors), lockstep=lockstep, lockstep_timeouts=sitl.lockstep_timeouts,
                    targets=int(grid.n_targets), believed_found=len(log.believed_found),
                    truly_found=int(sum(truly)), frames=log.frames, frames_missing=log.frames_missing,

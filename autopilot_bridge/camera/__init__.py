@@ -67,6 +67,19 @@ def _open_mavlink(rest: str, link: VehicleLink, link_address: str = "the vehicle
 SCHEMES["mavlink"] = _open_mavlink
 
 
+def _open_video(rest: str, link: VehicleLink, sdp: str | Path | None = None, first_frame_s: float | None = 30.0,
+                **_: object) -> FrameSource:
+    """A video stream (video.py, PyAV): an RTP URL with its SDP, RTSP, a V4L2 device, a file;
+    waits for its first frame (VideoSourceError naming the URL when none comes)."""
+    from .video import open_video_source
+
+    return open_video_source(rest, sdp, first_frame_s=first_frame_s)
+
+
+for _scheme in ("udp", "rtp", "rtsp", "device", "file"):
+    SCHEMES[_scheme] = _open_video
+
+
 def check_spec(spec: str) -> None:
     """CameraSpecError for a spec no source reads (before anything is connected)."""
     scheme, rest = scheme_of(spec)

@@ -61,12 +61,16 @@ def register(app: typer.Typer) -> None:
         set_failsafe: bool = typer.Option(
             False, "--set-failsafe", help="Set the vehicle's companion-loss failsafe to safe values where it would "
                                           "leave the vehicle flying without this companion (default: refuse to fly)."),
-        camera: str = typer.Option(
-            "mavlink", "--camera",
-            help="Where the frames come from: mavlink (the MAVLink camera component on the vehicle's link) or "
-                 "mavlink:ADDRESS (the camera component on its own pymavlink address, e.g. udpin:0.0.0.0:14560)."),
         signing_key_file: Path | None = typer.Option(
             None, "--signing-key-file", help="Sign the link (MAVLink 2): a chmod-600 file with 64 hex chars or a passphrase."),
+        camera: str = typer.Option(
+            "mavlink", "--camera",
+            help="Where frames come from: mavlink (the MAVLink camera component on the vehicle's link), "
+                 "mavlink:ADDRESS (the camera component on its own pymavlink address, e.g. udpin:0.0.0.0:14560), "
+                 "video (the field file's video stream), or a video URL PyAV opens: udp://:5600 (RTP, with its SDP), "
+                 "rtsp://..., /dev/videoN, a file."),
+        video_sdp: Path | None = typer.Option(
+            None, "--video-sdp", help="The SDP file of an RTP video stream (default: the field file's)."),
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
         from autopilot_bridge.dialects import NAMES as AUTOPILOTS
@@ -133,10 +137,17 @@ def register(app: typer.Typer) -> None:
         if port is not None and udp_port_taken(port):
             raise typer.BadParameter(f"UDP port {port} is taken: is another `uavsearch run` connected to this "
                                      "vehicle? Stop it first", param_hint="--connect")
-        from autopilot_bridge.camera import CameraNotFound, CameraSpecError, check_spec, open_source
+        from autopilot_bridge.camera import (
+            CameraNotFound,
+            CameraSpecError,
+            check_spec,
+            open_source,
+            scheme_of,
+        )
+        from autopilot_bridge.camera.video import VideoSourceError
 
         try:
-            check_spec(camera)
+            check_spec(camera if camera != "video" else "udp://")
         except CameraSpecError as e:
             raise typer.BadParameter(str(e), param_hint="--camera") from e
         try:  # before anything flies: a policy that cannot serve this field says so now
@@ -157,6 +168,15 @@ def register(app: typer.Typer) -> None:
         except KeyFileError as e:
             raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
         config["signing"] = key is not None
+        cam_options: dict = {}
+        if camera == "video":
+            if fs is None or fs.video_uri is None:
+                raise typer.BadParameter("video: the field file names no video stream (start `uavsearch sitl "
+                                         "--video-port 5600`), or give its URL", param_hint="--camera")
+            camera = fs.video_uri
+        if scheme_of(camera)[0] != "mavlink":
+            cam_options["sdp"] = video_sdp if video_sdp is not None else (fs.video_sdp if fs is not None else None)
+        config["camera"] = camera
         link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
                            tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key,
                            dialect=autopilot.lower())
@@ -164,8 +184,8 @@ def register(app: typer.Typer) -> None:
                    f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
         try:  # the camera before anything flies: none answering is one clear line, nothing armed
             frames = open_source(camera, link, link_address=address, signing_key=key, timeout_s=CAMERA_TIMEOUT_S,
-                                 tlog=out / "camera.tlog" if tlog and camera != "mavlink" else None)
-        except CameraNotFound as e:
+                                 tlog=out / "camera.tlog" if tlog and camera != "mavlink" else None, **cam_options)
+        except (CameraNotFound, VideoSourceError) as e:
             link.close()
             typer.echo(f"error: {e}", err=True)
             raise typer.Exit(1) from None
@@ -180,6 +200,8 @@ def register(app: typer.Typer) -> None:
                                   set_failsafe=set_failsafe)
                 service = PolicyService(link, pol, spec, seed,
                                         on_progress=progress, frames=frames)
+                if hasattr(frames, "clock"):  # a stream's unstamped frames: on the vehicle's clock
+                    frames.clock = lambda: service.intake.sim_time_s
                 end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
                                      move_timeout_s=move_timeout)
         finally:

@@ -74,12 +74,24 @@ def register(app: typer.Typer) -> None:
         bind: str = typer.Option("0.0.0.0", "--bind", help="Local address the vehicle's ports listen on "
                                  "(127.0.0.1: this machine only)."),
         duration: float | None = typer.Option(None, "--duration", help="Stop after this many simulated seconds."),
+        video_port: str = typer.Option(
+            "0", "--video-port",
+            help="Stream the camera as RTP/H.264 to this UDP port (5600: QGroundControl's 'UDP h.264 Video "
+                 "Stream'; 0 or none: off); instance N streams to PORT+2N (a receiver takes PORT+1 for RTCP). "
+                 "An SDP file goes next to the field file."),
+        video_host: str = typer.Option("127.0.0.1", "--video-host", help="Where the video stream is sent (IPv4)."),
+        video_rate: float = typer.Option(10.0, "--video-rate", help="Video frames per simulated second."),
+        video_qp: int = typer.Option(
+            0, "--video-qp", help="H.264 quantiser: 0 lossless (High 4:4:4 Predictive; FFmpeg and software "
+            "decoders), 4 High profile for hardware decoders (colours within 5 levels)."),
     ) -> None:
         """Start SITL vehicles (PX4 or ArduCopter flavour) and print how to connect to them."""
         from missions.fieldfile import FieldSpec, write_field
         from missions.ports import udp_port_taken
+        from provenance import atomic_write_bytes
         from sim.gridworld import ConfigError, GridConfig
         from sim.mavlink import Geofence, Sitl, SitlConfig, SitlFleet
+        from sim.mavlink.video import VideoConfig, sdp_text
         from sim.vehicle.geo import HomePosition
 
         if instance + count > 40:
@@ -112,6 +124,15 @@ def register(app: typer.Typer) -> None:
         elif fence_radius < diagonal:
             typer.echo(f"warning: --fence-radius {fence_radius:g} m is smaller than the field's diagonal "
                        f"({diagonal:.0f} m): some cells may be out of reach", err=True)
+        vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
+        if vport is None:
+            try:
+                vport = int(video_port)
+            except ValueError:
+                raise typer.BadParameter(f"{video_port!r}: a UDP port, or 0 / none for no video",
+                                         param_hint="--video-port") from None
+        if vport and not 1 <= vport <= 65534 - 2 * count:
+            raise typer.BadParameter(f"{vport}: must be a UDP port 1..{65534 - 2 * count}", param_hint="--video-port")
         cfgs = []
         for n in range(instance, instance + count):
             try:
@@ -124,12 +145,17 @@ def register(app: typer.Typer) -> None:
                         f"UDP port {port} ({what} of instance {n}) is taken: is another `uavsearch sitl "
                         f"--instance {n}` running? Stop it or pick another --instance.", param_hint="--instance")
             path = None if tlog is None else tlog.with_name(f"{tlog.stem}-{n}{tlog.suffix or '.tlog'}")
+            try:
+                video = VideoConfig(port=vport + 2 * (n - instance) if vport else 0, host=video_host, rate_hz=video_rate,
+                                    qp=video_qp)
+            except ValueError as e:
+                raise typer.BadParameter(str(e), param_hint="--video-port/--video-host/--video-rate/--video-qp") from e
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
                              target_step_s=target_step_s, field_edge=field_edge,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind,
-                             dialect=dialect.value, ekf_delay_s=ekf_delay_s)
+                             dialect=dialect.value, ekf_delay_s=ekf_delay_s, video=video)
             cfgs.append(cfg)
             api, gcs = cfg.api_ports[1], cfg.gcs_ports[1]
             typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}, {dialect.value}):")
@@ -140,11 +166,20 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on the same links "
                        "(uavsearch run --camera mavlink)")
             fpath = field_out if count == 1 else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
+            uri = sdp_name = None
+            if video.enabled:
+                sdp_path = fpath.with_suffix(".sdp")
+                atomic_write_bytes(sdp_path, sdp_text(video).encode("ascii"))
+                uri, sdp_name = f"udp://:{video.port}", sdp_path.name
+                typer.echo(f"    video               RTP/H.264 to {video.host}:{video.port} ({video.rate_hz:g} Hz "
+                           f"simulated), SDP {sdp_path}; QGroundControl: Video Source 'UDP h.264 Video Stream', "
+                           f"port {video.port}")
             write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
-                                         dialect.value), seed + n, sitl=cfg.to_dict())
+                                         dialect=dialect.value, video_uri=uri, video_sdp=sdp_name),
+                        seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
-            typer.echo(f"    companion           uavsearch run --field {fpath}")
+            typer.echo(f"    companion           uavsearch run --field {fpath}" + (" [--camera video]" if uri else ""))
         if key is not None:
             typer.echo("MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: `signing key` with "
                        "the file's passphrase, or the same 32-byte key).")

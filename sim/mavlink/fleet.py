@@ -69,6 +69,7 @@ class SitlFleet(BackgroundRunner):
             else:  # built and sent in each vehicle's tick, still one datagram per link
                 s.vehicle.batch_streams = True
         self._owner = {link.sock: i for i, s in enumerate(self.sitls) for link in s.vehicle.links}
+        self._streaming = [s for s in self.sitls if s.video is not None]
         self._owner_fd = {sock.fileno(): i for sock, i in self._owner.items()}
         self.quiet = QuietFleet(self.sitls, quiet_ticks, world=self.world)  # ticks changing only the battery
         self._poller = select.epoll() if hasattr(select, "epoll") else select.poll()
@@ -97,6 +98,8 @@ class SitlFleet(BackgroundRunner):
             self._serve_one(i)
         self.quiet.tick(self.t, w.positions_ned, w.armed, w.landed)
         self.telemetry.flush()
+        for sitl in self._streaming:  # camera video streams (sitl --video-port), quiet or not
+            sitl._stream_video(self.t)
 
     def _serve_one(self, i: int) -> None:
         self.sitls[i].vehicle.service()

@@ -41,6 +41,7 @@ from .runner import BackgroundRunner, pace
 from .tlog import TlogWriter
 from .udp import UdpLink
 from .vehicle import MavlinkVehicle
+from .video import VideoConfig, VideoStreamer
 
 TICK_S = 0.02
 LOCKSTEP_TIMEOUT_S = 5.0  # wall-clock seconds a companion may think before time runs on
@@ -85,6 +86,8 @@ class SitlConfig:
     #: ardupilot: simulated seconds from boot until the EKF has an absolute horizontal position
     #: (arming in GUIDED waits for it; the real ArduCopter SITL takes ~40 s, tests want few)
     ekf_delay_s: float = 3.0
+    #: the camera's RTP/H.264 stream (`sitl --video-port`, sim/mavlink/video.py); port 0: off
+    video: VideoConfig = field(default_factory=VideoConfig)
     # port overrides (None: PX4 SITL's numbering for this instance)
     api_local_port: int | None = None
     api_remote_port: int | None = None
@@ -128,7 +131,7 @@ class SitlConfig:
         d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("signing_key", "grid")}
         d.update(home=asdict(self.home), geofence=asdict(self.geofence), grid=self.grid.to_dict(), gps=asdict(self.gps),
                  signing=self.signing_key is not None, tlog=None if self.tlog is None else str(self.tlog),
-                 sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports)
+                 sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports, video=asdict(self.video))
         return d
 
     @property
@@ -194,6 +197,10 @@ class Sitl(BackgroundRunner):
                                 origin=self.episode.agent[0], edge=cfg.field_edge)
             self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
             has_camera = True
+        self.video: VideoStreamer | None = None
+        self._video_held = False  # the vehicle held for the companion at the last video check
+        if cfg.video.enabled and has_camera:
+            self.video = VideoStreamer(cfg.video, cfg.camera_px, cfg.camera_px)
         self.tlog = TlogWriter(cfg.tlog, meta=stamp(cfg.to_dict(), cfg.seed, kind="sitl tlog")) if cfg.tlog else None
         sink = self.tlog.write if self.tlog else None
         links = [UdpLink(*cfg.api_ports, host=cfg.host, system_id=cfg.sysid, signing_key=cfg.signing_key,
@@ -204,6 +211,8 @@ class Sitl(BackgroundRunner):
                                      signing_key=cfg.signing_key, on_bytes=sink, log_outgoing=False, bind=cfg.bind))
             except OSError:
                 links[0].close()
+                if self.video is not None:
+                    self.video.close()
                 raise
         self.gps = GpsModel(self.home, cfg.seed, cfg.gps)
         options = {"ekf_delay_s": cfg.ekf_delay_s, "sysid": cfg.sysid} if cfg.dialect == "ardupilot" else {}
@@ -218,6 +227,8 @@ class Sitl(BackgroundRunner):
             if not ok:
                 for link in links:
                     link.close()
+                if self.video is not None:
+                    self.video.close()
                 raise ValueError(f"geofence: {why}")
         self.vehicle.lockstep = cfg.companion_lockstep
         self.lockstep_timeouts = 0
@@ -283,6 +294,23 @@ class Sitl(BackgroundRunner):
         self.t += TICK_S
         self._note_arming()
         self.vehicle.tick(self.t)
+        self._stream_video()
+
+    def _stream_video(self, t: float | None = None) -> None:
+        """Render the video stream's frame when one is due at simulated time t (default: this
+        vehicle's; a fleet passes its own, its quiet vehicles not being ticked); the encoder's
+        thread does the rest."""
+        if self.video is None:
+            return
+        t = self.t if t is None else t
+        # a companion-lockstep hold (at a capture asked for ahead) starts on this tick: its frame
+        # goes out whether or not the tick is on the stream's lattice, or the companion, waiting
+        # for the frame of its instant, would wait out the hold
+        held = self.vehicle.hold_for_companion
+        hold_starts, self._video_held = held and not self._video_held, held
+        if hold_starts or self.video.due(t):
+            s = self.model.state
+            self.video.submit(self._render(s.position_ned.copy(), float(s.attitude_rpy[2])), t)
 
     def _note_arming(self) -> None:
         if self._motion_t0 is None and self.model.state.armed:
@@ -334,6 +362,8 @@ class Sitl(BackgroundRunner):
     def _close(self) -> None:
         for link in self.vehicle.links:
             link.close()
+        if self.video is not None:
+            self.video.close()
         if self.tlog:
             self.tlog.close()
         if self._own_model:

@@ -56,3 +56,13 @@ def test_field_file_round_trip_and_errors(tmp_path: Path) -> None:
     for name, words in (("missing.json", ["missing.json", "does not exist"]), ("bad.json", ["bad.json", "bad or missing"])):
         r = runner.invoke(app, ["run", "--field", str(tmp_path / name)])
         assert r.exit_code == 2 and all(w in _text(r.output) for w in words), r.output
+
+
+def test_a_video_camera_without_its_sdp_or_stream_is_refused_by_name(tmp_path: Path) -> None:
+    for args, words in ((["--camera", "udp://:27360"], ["--camera", "udp://:27360", "SDP file"]),
+                        (["--camera", "udp://:27360", "--video-sdp", str(tmp_path / "no.sdp")],
+                         ["no.sdp", "cannot be read"]),
+                        (["--camera", "video"], ["names no video stream", "--video-port"])):
+        r = runner.invoke(app, ["run", *ORIGIN, "--out", str(tmp_path / "o"), *args])
+        assert r.exit_code == 2, (args, r.output)
+        assert all(w in _text(r.output) for w in words), (args, r.output)

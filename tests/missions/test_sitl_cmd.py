@@ -31,3 +31,17 @@ def test_sitl_writes_the_field_the_companion_needs(tmp_path: Path) -> None:
     assert d["connect"] == "udpin:0.0.0.0:14575" and d["provenance"]["sitl"]["geofence"]["max_horizontal_m"] > 100
     r = runner.invoke(app, ["sitl", "--cell-m", "3"])
     assert r.exit_code == 2 and "--cell-m" in r.output
+
+
+def test_sitl_video_port_writes_the_sdp_and_the_field_file_names_it(tmp_path: Path) -> None:
+    from missions.fieldfile import read_field
+
+    r = runner.invoke(app, ["sitl", "--instance", "36", "--physics", "kinematic", "--speedup", "0", "--duration", "0.5",
+                            "--video-port", "27201", "--field-out", str(tmp_path / "f.json")])
+    assert r.exit_code == 0, r.output
+    assert "UDP h.264 Video Stream" in r.output and "port 27201" in r.output
+    fs = read_field(tmp_path / "f.json")
+    assert fs.video_uri == "udp://:27201" and fs.video_sdp == str(tmp_path / "f.sdp")
+    assert "m=video 27201 RTP/AVP 96" in (tmp_path / "f.sdp").read_text()
+    r = runner.invoke(app, ["sitl", "--video-port", "fast"])
+    assert r.exit_code == 2 and "--video-port" in r.output
