@@ -200,12 +200,11 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     frames = None
     try:
         if video.enabled:
+            from autopilot_bridge.camera import MavlinkCamera
             from autopilot_bridge.camera.video import VideoSource
-            from autopilot_bridge.link import mavlink
 
-            def ask(at_s: float) -> None:  # a timed capture: what holds a lockstep SITL at at_s
-                link.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE,
-                             float(at_s))
+            # a timed capture asked of the camera component: what holds a lockstep SITL at at_s
+            ask = MavlinkCamera(link).ask
 
             frames = VideoSource(f"udp://:{video.port}", sitl.video.write_sdp(out / "camera.sdp"),
                                  asker=ask if lockstep else None)

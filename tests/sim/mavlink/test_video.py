@@ -120,7 +120,8 @@ def test_each_fleet_vehicle_streams_its_own_camera(tmp_path: Path) -> None:
 def test_a_lockstep_hold_streams_the_frame_of_its_instant(tmp_path: Path) -> None:
     """A companion-lockstep SITL holds at a capture asked for ahead (here off the stream's
     10 Hz lattice): the frame of that tick goes out on the stream while time stands still."""
-    from autopilot_bridge.link import VehicleLink, mavlink
+    from autopilot_bridge.camera import MavlinkCamera
+    from autopilot_bridge.link import VehicleLink
 
     cfg = SitlConfig(physics="kinematic", camera=True, speedup=5.0, gcs_link=False, companion_lockstep=True,
                      api_local_port=27021, api_remote_port=27022, video=VideoConfig(port=27023))
@@ -131,7 +132,7 @@ def test_a_lockstep_hold_streams_the_frame_of_its_instant(tmp_path: Path) -> Non
             with VideoSource("udp://:27023", sdp) as src:
                 link.wait_heartbeat()
                 at = round(sitl.t + 1.03, 2)
-                link.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_DATA_TRANSMISSION_HANDSHAKE, at)
+                MavlinkCamera(link).ask(at)  # the camera component's timed capture
                 f = src.wait_frame(at, 10.0)
                 held_at = sitl.t
                 time.sleep(0.3)
