@@ -17,6 +17,7 @@ from sim.gridworld import DEFAULT_CELL_M, ConfigError, GridConfig
 from sim.gridworld.geodesy import HomePosition
 
 KIND = "uavsearch field"
+AUTOPILOTS = ("ours", "ardupilot", "px4")
 
 
 class FieldFileError(ValueError):
@@ -34,6 +35,9 @@ class FieldSpec:
     #: the paddock's edge is visible (the SITL renders a track round the grass): the companion
     #: reads a border not in view as evidence (`SearchSpec.field_edge`)
     edge: bool = False
+    #: who flies the vehicle: "ours" (our SITL, sim.mavlink), "ardupilot" or "px4" (the real
+    #: binary on our world's physics, sim.bridges); None: a file from before this entry (ours)
+    autopilot: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": KIND,
@@ -41,7 +45,8 @@ class FieldSpec:
                 "cell_m": self.cell_m, "width": self.grid.width, "height": self.grid.height,
                 "targets": self.grid.n_targets, "distribution": self.grid.distribution,
                 "motion": self.grid.motion, "target_period": self.grid.target_period,
-                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge}
+                "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
+                "autopilot": self.autopilot}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -72,4 +77,7 @@ def read_field(path: Path) -> FieldSpec:
     edge = d.get("edge", False)  # field files written before the edge was rendered: none
     if not isinstance(edge, bool):
         raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
-    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge)
+    autopilot = d.get("autopilot")
+    if autopilot not in (None, *AUTOPILOTS):
+        raise FieldFileError(f"field file {path}: autopilot must be one of {', '.join(AUTOPILOTS)} (got {autopilot!r})")
+    return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, autopilot)

@@ -140,7 +140,7 @@ class Px4HilBridge(BackgroundRunner):
         self.lockstep_timeout_s = lockstep_timeout_s
         self.on_step = on_step
         self.lock = lock or threading.Lock()
-        self.gps = GpsModel(home, seed, gps or GpsConfig(rate_hz=10.0))
+        self.gps = GpsModel(home, seed, gps or GpsConfig())
         self.mag_ned = (field or EarthField()).ned()
         self.noise = noise or SensorNoise()
         self.rng = np.random.default_rng([seed, 0x4A11])  # the IMU's, mag's and baro's noise

@@ -216,6 +216,7 @@ class AutopilotWorld:
             time.sleep(0.02)
 
     def stop(self) -> None:
+        self.bridge._stop.set()  # first: the autopilot's end closing the link is no error then
         if self.process is not None:
             self.process.stop()
         self.bridge.stop()

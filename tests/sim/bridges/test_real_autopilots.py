@@ -1,0 +1,39 @@
+"""The real autopilots fly our body: arm, take off to 3.5 m, fly 2 m position legs, land and
+disarm, with plain pymavlink over each one's own link (sim.bridges.flight_check). Run only
+where the binaries are: ARDUPILOT_SITL (arducopter) / PX4_SITL (px4) name them."""
+
+import os
+
+import pytest
+
+from sim.bridges.flight_check import Link, fly
+from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
+
+
+def _flight(autopilot: str, instance: int, speedup: float, ready_timeout: float) -> None:
+    cfg = AutopilotWorldConfig(autopilot=autopilot, instance=instance, speedup=speedup, camera=False, gcs_port=None)
+    with AutopilotWorld(cfg) as world:
+        world.wait_physics()
+        link = Link(world.companion_address(), lambda: world.t)
+        try:
+            rep = fly(link, autopilot, truth=lambda: tuple(world.body.state.position_ned), speedup=max(speedup, 5.0),
+                      ready_timeout=ready_timeout)
+        finally:
+            link.close()
+        assert world.process is not None and world.process.alive, world.process.tail()
+    assert rep.landed_disarmed and rep.takeoff_s is not None and rep.takeoff_s < 10, rep
+    for leg in rep.legs:  # each 2 m leg within 0.5 m in a few seconds, and holding there
+        assert leg.settle_s is not None and leg.settle_s < 4.0, rep
+        assert leg.hold_err_max_m < 0.5, rep
+    # the autopilot's boot clock against our world's: a fixed offset (docs/autopilots.md)
+    assert rep.clock["time_boot_minus_world_max_s"] - rep.clock["time_boot_minus_world_min_s"] < 1.0, rep.clock
+
+
+@pytest.mark.skipif(not os.environ.get("PX4_SITL"), reason="PX4_SITL (the px4 SITL binary) is not set")
+def test_px4_flies_our_body() -> None:
+    _flight("px4", 23, 0.0, ready_timeout=60)
+
+
+@pytest.mark.skipif(not os.environ.get("ARDUPILOT_SITL"), reason="ARDUPILOT_SITL (the arducopter binary) is not set")
+def test_ardupilot_flies_our_body() -> None:
+    _flight("ardupilot", 24, 10.0, ready_timeout=60)
