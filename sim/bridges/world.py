@@ -8,10 +8,11 @@ the autopilot binary flying it all through its simulator interface.
         frame = world.render(position_ned, yaw)   # a camera component's render function
         stamp = world.autopilot_clock_s()         # and its clock (the autopilot's boot clock)
 
-Clocks (measured, docs/autopilots.md): the world's simulated time `t` starts at 0 at the
-first physics step. PX4's clock (hrt, time_boot_ms, GPS_RAW_INT.time_usec) is the HIL_SENSOR
-time_usec we send: t + 1 s. ArduPilot's is its own boot clock, which our JSON timestamps step
-on from its start: autopilot_clock_s() uses the offset measured at the first frame.
+Clocks (measured, docs/autopilots.md): the world's simulated time `t` starts at 0 before the
+first physics step. PX4's clock (hrt; time_boot_ms; GPS_RAW_INT.time_usec, the HIL_GPS stamp)
+is the HIL_SENSOR time_usec we send: t + 1 s. ArduPilot's boot clock is the sum of our JSON
+timestamps' steps from 0 (SIM_JSON.cpp: time_now_us += deltat): t itself; its GPS_RAW_INT.time_usec
+is the boot time of the last fix.
 """
 
 from __future__ import annotations
@@ -113,14 +114,14 @@ class AutopilotWorld:
         self.height: list[float] = []  # true height over the field at the same times
         self._next_truth = 0.0
         self.process: AutopilotProcess | None = None
-        self._clock_offset_s: float | None = None
         if cfg.autopilot == "ardupilot":
             self.bridge: ArduPilotJsonBridge | Px4HilBridge = ArduPilotJsonBridge(
                 self.body, json_port(cfg.instance), on_step=self._on_step, lock=self.lock)
+            self._clock_offset_s = 0.0  # measured: time_boot_ms / 1e3 - t in [-48, -2.5] ms at arrival
         else:
             self.bridge = Px4HilBridge(self.body, simulator_port(cfg.instance), self.home, seed=cfg.seed, gps=cfg.gps,
                                        speedup=cfg.speedup, on_step=self._on_step, lock=self.lock)
-            self._clock_offset_s = self.bridge.time_offset_usec / 1e6
+            self._clock_offset_s = self.bridge.time_offset_usec / 1e6  # measured: exact
 
     # -- what the companion and the camera need --------------------------------------------
     @property
@@ -130,13 +131,8 @@ class AutopilotWorld:
 
     def autopilot_clock_s(self) -> float:
         """Now on the autopilot's boot clock (time_boot_ms / 1e3): what a camera component
-        stamps its frames with, so the companion sees one clock. NaN before it is known."""
-        off = self._clock_offset_s
-        return float("nan") if off is None else self.bridge.t + off
-
-    def set_clock_offset(self, offset_s: float) -> None:
-        """ArduPilot's boot clock minus our t, as measured (time_boot_ms at a known t)."""
-        self._clock_offset_s = offset_s
+        stamps its frames with, so the companion sees one clock."""
+        return self.bridge.t + self._clock_offset_s
 
     def render(self, position_ned: np.ndarray, yaw: float) -> np.ndarray:
         """The downward camera's frame now (a camera component's render function)."""
