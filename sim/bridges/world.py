@@ -117,7 +117,7 @@ class AutopilotWorld:
         if cfg.autopilot == "ardupilot":
             self.bridge: ArduPilotJsonBridge | Px4HilBridge = ArduPilotJsonBridge(
                 self.body, json_port(cfg.instance), on_step=self._on_step, lock=self.lock)
-            self._clock_offset_s = 0.0  # measured: time_boot_ms / 1e3 - t in [-48, -2.5] ms at arrival
+            self._clock_offset_s = 0.0  # measured: time_boot_ms / 1e3 - t in [-70, -2] ms at arrival
         else:
             self.bridge = Px4HilBridge(self.body, simulator_port(cfg.instance), self.home, seed=cfg.seed, gps=cfg.gps,
                                        speedup=cfg.speedup, on_step=self._on_step, lock=self.lock)
