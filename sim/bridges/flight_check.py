@@ -209,8 +209,6 @@ def fly(link: Link, autopilot: str, truth=None, altitude: float = 3.5, leg_m: fl
             est: list[float] = []
             while link.boot_s - t0 < hold_s:
                 link.pump()
-                if autopilot == "ardupilot" and link.boot_s - t0 > 0.5:  # GUIDED holds the last; resend is harmless
-                    pass
                 if settle is None and near(target):
                     settle = link.boot_s - t0
                 pos = link.position()

@@ -171,7 +171,10 @@ class AutopilotWorld:
     # -- life cycle ----------------------------------------------------------------------
     def _on_step(self, t: float) -> None:
         self.scene.note_armed(t, self.bridge.armed)
-        self.body._s.armed = self.bridge.armed
+        if self.bridge.armed and not self.body.state.armed:  # the state says what the autopilot did
+            self.body.arm()
+        elif not self.bridge.armed and self.body.state.armed:
+            self.body.disarm()
         if t + 1e-9 >= self._next_truth:
             p = self.body.state.position_ned
             self.truth.append((t, *self.scene.field_ne(p)))

@@ -80,7 +80,6 @@ class MotorQuadrotor(PyBulletQuadrotor):
         self._throttle = (0.0, 0.0, 0.0, 0.0)
         self._h_set = 1.0 / 240.0
         af = self.af
-        self._t_max = af.kf * af.max_omega**2
         # per rotor: roll and pitch torque per N of thrust (FLU: y F, -x F) and yaw per N
         self._motor_coefs = tuple((float(r[1]), -float(r[0]), -sp * af.km / af.kf)
                                   for r, sp in zip(self.rotors, SPIN_CCW, strict=True))
