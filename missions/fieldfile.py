@@ -18,6 +18,7 @@ from sim.gridworld.geodesy import HomePosition
 
 KIND = "uavsearch field"
 DIALECTS = ("px4", "ardupilot")  # sim.mavlink.dialects.DIALECTS (missions reads no sim.mavlink here)
+AUTOPILOTS = ("ours", "ardupilot", "px4")
 
 
 class FieldFileError(ValueError):
@@ -42,6 +43,9 @@ class FieldSpec:
     #: the SDP file describing it (written next to the field file; relative to it)
     video_uri: str | None = None
     video_sdp: str | None = None
+    #: who flies the vehicle: "ours" (our SITL, sim.mavlink), "ardupilot" or "px4" (the real
+    #: binary on our world's physics, sim.bridges); None: a file from before this entry (ours)
+    autopilot: str | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -55,7 +59,8 @@ class FieldSpec:
                 "motion": self.grid.motion, "target_period": self.grid.target_period,
                 "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
                 "dialect": self.dialect,
-                "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp}}
+                "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp},
+                "autopilot": self.autopilot}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -86,6 +91,9 @@ def read_field(path: Path) -> FieldSpec:
     edge = d.get("edge", False)  # field files written before the edge was rendered: none
     if not isinstance(edge, bool):
         raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
+    autopilot = d.get("autopilot")
+    if autopilot not in (None, *AUTOPILOTS):
+        raise FieldFileError(f"field file {path}: autopilot must be one of {', '.join(AUTOPILOTS)} (got {autopilot!r})")
     dialect = d.get("dialect", "px4")  # field files written before dialects: PX4's
     if dialect not in DIALECTS:
         raise FieldFileError(f"field file {path}: dialect must be one of {', '.join(DIALECTS)} (got {dialect!r})")
@@ -99,4 +107,4 @@ def read_field(path: Path) -> FieldSpec:
         if sdp is not None and not Path(sdp).is_absolute():
             sdp = str(Path(path).parent / sdp)
     return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
-                     video_uri=uri, video_sdp=sdp)
+                     video_uri=uri, video_sdp=sdp, autopilot=autopilot)

@@ -22,6 +22,10 @@ class Physics(StrEnum):
 class Dialect(StrEnum):
     px4 = "px4"
     ardupilot = "ardupilot"
+class Autopilot(StrEnum):
+    ours = "ours"  # our SITL vehicle (sim.mavlink): its own controller, PX4's ports and dialect
+    ardupilot = "ardupilot"  # ArduCopter SITL on our world's physics (JSON backend)
+    px4 = "px4"  # PX4 SITL on our world's physics (simulator_mavlink, HIL)
 
 
 def register(app: typer.Typer) -> None:
@@ -84,6 +88,12 @@ def register(app: typer.Typer) -> None:
         video_qp: int = typer.Option(
             0, "--video-qp", help="H.264 quantiser: 0 lossless (High 4:4:4 Predictive; FFmpeg and software "
             "decoders), 4 High profile for hardware decoders (colours within 5 levels)."),
+        autopilot: Autopilot = typer.Option(
+            Autopilot.ours, "--autopilot",
+            help="Who flies: ours (our SITL vehicle), or a real ardupilot / px4 SITL binary taking its physics from "
+                 "our world (the PyBullet body driven by its motor commands, the same field and targets)."),
+        autopilot_bin: Path | None = typer.Option(
+            None, "--autopilot-bin", help="The autopilot binary (arducopter / px4); default $ARDUPILOT_SITL / $PX4_SITL."),
     ) -> None:
         """Start SITL vehicles (PX4 or ArduCopter flavour) and print how to connect to them."""
         from missions.fieldfile import FieldSpec, write_field
@@ -124,6 +134,11 @@ def register(app: typer.Typer) -> None:
         elif fence_radius < diagonal:
             typer.echo(f"warning: --fence-radius {fence_radius:g} m is smaller than the field's diagonal "
                        f"({diagonal:.0f} m): some cells may be out of reach", err=True)
+        if autopilot != Autopilot.ours:
+            _real_autopilot(autopilot.value, autopilot_bin, instance, count, speedup, physics, origin, grid, seed,
+                            target_step_s, field_edge, field_out, fence_radius, fence_alt, gcs_port_per_instance,
+                            key, tlog, duration, cell_m)
+            return
         vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
         if vport is None:
             try:
@@ -175,7 +190,7 @@ def register(app: typer.Typer) -> None:
                            f"simulated), SDP {sdp_path}; QGroundControl: Video Source 'UDP h.264 Video Stream', "
                            f"port {video.port}")
             write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
-                                         dialect=dialect.value, video_uri=uri, video_sdp=sdp_name),
+                                         dialect=dialect.value, autopilot="ours", video_uri=uri, video_sdp=sdp_name),
                         seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
@@ -199,3 +214,78 @@ def register(app: typer.Typer) -> None:
             pass
         finally:
             runner.stop()
+
+
+def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: int, speedup: float,
+                    physics: Physics, origin, grid, seed: int, target_step_s: float, field_edge: bool,
+                    field_out: Path, fence_radius: float, fence_alt: float, gcs_port_per_instance: bool,
+                    key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float) -> None:
+    """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
+    physics, the field file pointing the companion at the binary's API link."""
+    from missions.fieldfile import FieldSpec, write_field
+    from missions.ports import udp_port_taken
+    from sim.bridges.ardupilot_json import json_port
+    from sim.bridges.processes import ARDUPILOT_ENV, PX4_ENV, AutopilotStartError, find_binary
+    from sim.bridges.px4_hil import simulator_port
+    from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
+
+    for bad, what, hint in ((count != 1, "one vehicle (--count 1)", "--count"),
+                            (physics != Physics.pybullet, "the PyBullet body (--physics pybullet)", "--physics"),
+                            (key is not None, "no MAVLink signing of ours (set the autopilot's own)", "--signing-key-file"),
+                            (tlog is not None, "no .tlog of ours (the autopilot logs itself)", "--tlog"),
+                            (speedup == 0 and autopilot == "ardupilot", "a --speedup > 0 (it paces itself)", "--speedup")):
+        if bad:
+            raise typer.BadParameter(f"--autopilot {autopilot} runs {what}", param_hint=hint)
+    try:
+        find_binary(binary, ARDUPILOT_ENV if autopilot == "ardupilot" else PX4_ENV, autopilot)
+    except AutopilotStartError as e:
+        raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
+    n = instance
+    if autopilot == "ardupilot":
+        fence = {"FENCE_ENABLE": 1, "FENCE_TYPE": 3, "FENCE_RADIUS": fence_radius, "FENCE_ALT_MAX": fence_alt}
+        taken = udp_port_taken(json_port(n)) or udp_port_taken(14540 + n)
+        what = f"UDP {json_port(n)} (JSON physics) or {14540 + n} (API link)"
+    else:
+        fence = {"GF_MAX_HOR_DIST": fence_radius, "GF_MAX_VER_DIST": fence_alt}
+        import socket
+
+        with socket.socket() as s:
+            taken = s.connect_ex(("127.0.0.1", simulator_port(n))) == 0
+        what = f"TCP {simulator_port(n)} (PX4's simulator port)"
+    if taken:
+        raise typer.BadParameter(f"{what} of instance {n} is taken: is another sitl on instance {n} running?",
+                                 param_hint="--instance")
+    cfg = AutopilotWorldConfig(autopilot=autopilot, instance=n, speedup=speedup, binary=binary, home=origin, grid=grid,
+                               episode_seed=seed + n, seed=seed + n, camera=True, field_edge=field_edge,
+                               target_step_s=target_step_s, gcs_port=14550 + n if gcs_port_per_instance else 14550,
+                               params=fence)
+    world = AutopilotWorld(cfg)
+    address = world.companion_address()
+    connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
+    write_field(field_out, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
+                                     autopilot=autopilot),
+                seed + n, sitl=cfg.to_dict())
+    typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
+    typer.echo(f"    companion           uavsearch run --field {field_out}   ({connect})")
+    typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
+               f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m")
+
+    def terminate(_signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, terminate)
+    try:
+        world.start()
+    except AutopilotStartError as e:
+        raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
+    try:
+        while world.process is not None and world.process.alive:
+            time.sleep(0.2)
+            if duration is not None and world.t >= duration:
+                break
+        if world.process is not None and not world.process.alive:
+            typer.echo(f"error: {autopilot} exited:\n{world.process.tail()}", err=True)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        world.stop()

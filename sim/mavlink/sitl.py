@@ -28,10 +28,11 @@ from typing import Any
 import numpy as np
 
 from provenance import stamp
-from sim.gridworld import BatchGridWorld, GridConfig, cell_to_ned, sample_episodes
+from sim.gridworld import BatchGridWorld, GridConfig
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig, GpsModel
 from sim.vehicle.model import FlightModel
+from sim.vehicle.scene import FieldScene
 
 from .camera_component import MAV_COMP_ID_CAMERA, CameraComponent, CameraInfo
 from .component_link import SharedLink
@@ -160,14 +161,13 @@ class Sitl(BackgroundRunner):
         """model: a flight model stepped by someone else (a fleet member, sim/mavlink/fleet.py);
         None builds and steps this vehicle's own, as cfg.physics says."""
         self.cfg = cfg
-        self.episode = sample_episodes(cfg.grid, 1, cfg.episode_seed)
-        start_cell = self.episode.agent[0]
-        spawn_ne = cell_to_ned(start_cell)
-        # home is the spawn point; the field's cell (0, 0) lies at -spawn in local NED
-        field_home = HomePosition(cfg.home.lat_deg, cfg.home.lon_deg, cfg.home.alt_m)
-        self.home = HomePosition(*field_home.ned_to_geodetic(np.array([spawn_ne[0], spawn_ne[1], 0.0])))
-        self.field_origin = field_home
-        self.spawn_ne = spawn_ne
+        # the field: episode, home at the spawn point (the field's cell (0, 0) lies at -spawn in
+        # local NED), rendered paddock and camera; shared with the worlds real autopilots fly
+        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s)
+        self.episode = self.scene.episode
+        self.home = self.scene.home
+        self.field_origin = self.scene.field_origin
+        self.spawn_ne = self.scene.spawn_ne
         self._field = None
         self._scene: int | None = None  # a render-only PyBullet world, for a fleet member's camera
         self._own_model = model is None
@@ -183,9 +183,6 @@ class Sitl(BackgroundRunner):
             self.model = KinematicVehicle()
         has_camera = False
         if cfg.camera:
-            from sim.vehicle.camera import DownCamera
-            from sim.vehicle.field import Field
-
             if self._own_model and hasattr(self.model, "cid"):
                 cid = self.model.cid
             else:  # a fleet's world holds every vehicle, a kinematic body has none: a scene to render
@@ -193,9 +190,8 @@ class Sitl(BackgroundRunner):
 
                 cid = self._scene = pybullet.connect(pybullet.DIRECT)
             # the PyBullet world is centred on the spawn point: the field is shifted to match
-            self._field = Field(cid, cfg.grid.width, cfg.grid.height, cfg.grid.n_targets, seed=cfg.seed,
-                                origin=self.episode.agent[0], edge=cfg.field_edge)
-            self._cam = DownCamera(cid, cfg.camera_px, cfg.camera_px)
+            self.scene.attach(cid, cfg.seed, cfg.field_edge, cfg.camera_px)
+            self._field, self._cam = self.scene.field, self.scene.cam
             has_camera = True
         self.video: VideoStreamer | None = None
         self._video_held = False  # the vehicle held for the companion at the last video check
@@ -236,38 +232,27 @@ class Sitl(BackgroundRunner):
         self.errors: list[str] = []
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._motion_t0: float | None = None  # simulated time of the first arming
         self._update_targets()
 
     # -- the field's truth (never sent over MAVLink) --------------------------------------
+    @property
+    def _motion_t0(self) -> float | None:
+        """Simulated time of the first arming (the targets move from then on)."""
+        return self.scene.motion_t0
+
     def target_cells(self, t: float | None = None) -> np.ndarray:
-        """Targets' cells now, moving smoothly between grid steps: one step per target_step_s
-        of simulated time since the vehicle first armed (still before), holding the last
-        position after the episode's t_e steps."""
-        t = self.t if t is None else t
-        ep = self.episode
-        if ep.paths is None:
-            return ep.targets[0].astype(float)
-        if self._motion_t0 is None:
-            return ep.paths[0, 0].astype(float)
-        t = max(t - self._motion_t0, 0.0) / self.cfg.target_step_s
-        k = int(np.floor(t))
-        a = ep.paths[0, min(k, ep.paths.shape[1] - 1)]
-        b = ep.paths[0, min(k + 1, ep.paths.shape[1] - 1)]
-        return a + (b - a) * (t - k)
+        """Targets' cells now (FieldScene.target_cells)."""
+        return self.scene.target_cells(self.t if t is None else t)
 
     def vehicle_cell(self) -> np.ndarray:
         """The true cell under the vehicle (fractional)."""
-        ned = self.model.state.position_ned[:2] + self.spawn_ne
-        return np.array([ned[1] / 2.0, -ned[0] / 2.0])
+        return self.scene.vehicle_cell(self.model.state.position_ned)
 
     def _update_targets(self) -> None:
-        if self._field is not None:
-            self._field.set_targets(self.target_cells())
+        self.scene.update_targets(self.t)
 
     def _render(self, position_ned: np.ndarray, yaw: float) -> np.ndarray:
-        self._update_targets()
-        return self._cam.render(position_ned, yaw)
+        return self.scene.render(self.t, position_ned, yaw)
 
     def render_now(self) -> np.ndarray:
         """What the camera sees now: the field with the targets where they are at self.t."""
@@ -313,8 +298,7 @@ class Sitl(BackgroundRunner):
             self.video.submit(self._render(s.position_ned.copy(), float(s.attitude_rpy[2])), t)
 
     def _note_arming(self) -> None:
-        if self._motion_t0 is None and self.model.state.armed:
-            self._motion_t0 = self.t
+        self.scene.note_armed(self.t, self.model.state.armed)
 
     def tick(self, t: float, serve: bool = True, sampled: bool = False) -> None:
         """The MAVLink side's tick after someone else stepped the model to t (fleets); a

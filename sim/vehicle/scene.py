@@ -1,0 +1,83 @@
+"""The field a vehicle searches, shared by our SITL (sim.mavlink.sitl) and the worlds that real
+autopilots fly (sim.bridges.world): the episode (targets, their motion, the spawn cell), home
+at the spawn point, the rendered paddock and the downward camera, the targets' truth in time.
+
+Built in two steps, as the SITL always did: the geometry (episode, home) first, then
+`attach(client)` puts the field into the PyBullet world the vehicle flies in (or a render-only
+one) and makes the camera.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.gridworld import GridConfig, cell_to_ned, sample_episodes
+
+from .geo import HomePosition
+
+
+class FieldScene:
+    def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float) -> None:
+        """field_origin: cell (0, 0)'s centre; home becomes the spawn point, and the field's
+        cell (0, 0) lies at -spawn in local NED."""
+        self.grid = grid
+        self.target_step_s = target_step_s
+        self.episode = sample_episodes(grid, 1, episode_seed)
+        spawn_ne = cell_to_ned(self.episode.agent[0])
+        self.field_origin = HomePosition(field_origin.lat_deg, field_origin.lon_deg, field_origin.alt_m)
+        self.home = HomePosition(*self.field_origin.ned_to_geodetic(np.array([spawn_ne[0], spawn_ne[1], 0.0])))
+        self.spawn_ne = spawn_ne
+        self.field = None
+        self.cam = None
+        self.motion_t0: float | None = None  # simulated time of the first arming
+
+    def attach(self, client: int, seed: int, edge: bool, camera_px: int) -> None:
+        """Render the field into PyBullet world `client` (centred on the spawn point) and make
+        the downward camera."""
+        from .camera import DownCamera
+        from .field import Field
+
+        g = self.grid
+        self.field = Field(client, g.width, g.height, g.n_targets, seed=seed, origin=self.episode.agent[0], edge=edge)
+        self.cam = DownCamera(client, camera_px, camera_px)
+
+    def note_armed(self, t: float, armed: bool) -> None:
+        """The targets start moving at the first arming."""
+        if self.motion_t0 is None and armed:
+            self.motion_t0 = t
+
+    def target_cells(self, t: float) -> np.ndarray:
+        """Targets' cells at t, moving smoothly between grid steps: one step per target_step_s
+        of simulated time since the vehicle first armed (still before), holding the last
+        position after the episode's t_e steps."""
+        ep = self.episode
+        if ep.paths is None:
+            return ep.targets[0].astype(float)
+        if self.motion_t0 is None:
+            return ep.paths[0, 0].astype(float)
+        t = max(t - self.motion_t0, 0.0) / self.target_step_s
+        k = int(np.floor(t))
+        a = ep.paths[0, min(k, ep.paths.shape[1] - 1)]
+        b = ep.paths[0, min(k + 1, ep.paths.shape[1] - 1)]
+        return a + (b - a) * (t - k)
+
+    def vehicle_cell(self, position_ned: np.ndarray) -> np.ndarray:
+        """The true cell under a vehicle at local NED position_ned (fractional)."""
+        ned = position_ned[:2] + self.spawn_ne
+        return np.array([ned[1] / 2.0, -ned[0] / 2.0])
+
+    def field_ne(self, position_ned: np.ndarray) -> tuple[float, float]:
+        """True north, east in the field's frame (from cell (0, 0)): the scorer's truth."""
+        return float(position_ned[0] + self.spawn_ne[0]), float(position_ned[1] + self.spawn_ne[1])
+
+    def update_targets(self, t: float) -> None:
+        if self.field is not None:
+            self.field.set_targets(self.target_cells(t))
+
+    def render(self, t: float, position_ned: np.ndarray, yaw: float) -> np.ndarray:
+        """The camera's frame at simulated time t from position_ned (the targets where they
+        are at t)."""
+        if self.cam is None:
+            raise RuntimeError("FieldScene.render before attach(): no camera")
+        self.update_targets(t)
+        return self.cam.render(position_ned, yaw)
