@@ -168,14 +168,18 @@ def register(app: typer.Typer) -> None:
         except KeyFileError as e:
             raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
         config["signing"] = key is not None
-        cam_options: dict = {}
         if camera == "video":
             if fs is None or fs.video_uri is None:
                 raise typer.BadParameter("video: the field file names no video stream (start `uavsearch sitl "
                                          "--video-port 5600`), or give its URL", param_hint="--camera")
             camera = fs.video_uri
-        if scheme_of(camera)[0] != "mavlink":
-            cam_options["sdp"] = video_sdp if video_sdp is not None else (fs.video_sdp if fs is not None else None)
+        frames = None
+        if scheme_of(camera)[0] != "mavlink":  # a video stream needs no link: opened (or refused) first
+            sdp = video_sdp if video_sdp is not None else (fs.video_sdp if fs is not None else None)
+            try:
+                frames = open_source(camera, None, sdp=sdp)
+            except VideoSourceError as e:
+                raise typer.BadParameter(str(e), param_hint="--camera") from e
         config["camera"] = camera
         link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
                            tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key,
@@ -183,9 +187,10 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
                    f"({grid.motion}); connecting to {address} (on abort: {on_abort.value})")
         try:  # the camera before anything flies: none answering is one clear line, nothing armed
-            frames = open_source(camera, link, link_address=address, signing_key=key, timeout_s=CAMERA_TIMEOUT_S,
-                                 tlog=out / "camera.tlog" if tlog and camera != "mavlink" else None, **cam_options)
-        except (CameraNotFound, VideoSourceError) as e:
+            if frames is None:
+                frames = open_source(camera, link, link_address=address, signing_key=key, timeout_s=CAMERA_TIMEOUT_S,
+                                     tlog=out / "camera.tlog" if tlog and camera != "mavlink" else None)
+        except CameraNotFound as e:
             link.close()
             typer.echo(f"error: {e}", err=True)
             raise typer.Exit(1) from None
