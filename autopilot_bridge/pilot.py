@@ -153,7 +153,12 @@ class Pilot:
         # the link was up before the vehicle started), not "now", which depends on how long
         # this process took to get going; the start cell comes from the fixes up to it
         period = self.spec.decision_period_s
-        self.t_ref = period * math.ceil((self.intake.first_fix_t + 0.5) / period)
+        anchor = self.intake.first_fix_t
+        if self.intake.sim_time_s - anchor > period:
+            # readiness came long after the first fix (ArduCopter's EKF: ~40 s): the schedule
+            # starts from now, not from a past the vehicle has left behind
+            anchor = self.intake.sim_time_s
+        self.t_ref = period * math.ceil((anchor + 0.5) / period)
         t_arm = max(self.t_ref, self.registration.launch_window()[1]) + ARM_AFTER_S
         t_climb = t_arm + TAKEOFF_AFTER_ARM_S
         self.t_offboard = t_climb + CLIMB_S

@@ -46,6 +46,9 @@ class FieldSpec:
     #: who flies the vehicle: "ours" (our SITL, sim.mavlink), "ardupilot" or "px4" (the real
     #: binary on our world's physics, sim.bridges); None: a file from before this entry (ours)
     autopilot: str | None = None
+    #: the companion's `run --camera` spec for this vehicle's camera (a camera component on an
+    #: address of its own, beside a real autopilot); None: the one on the vehicle's link
+    camera: str | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -60,7 +63,7 @@ class FieldSpec:
                 "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
                 "dialect": self.dialect,
                 "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp},
-                "autopilot": self.autopilot}
+                "autopilot": self.autopilot, "camera": self.camera}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -92,6 +95,10 @@ def read_field(path: Path) -> FieldSpec:
     if not isinstance(edge, bool):
         raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
     autopilot = d.get("autopilot")
+    camera = d.get("camera")
+    if camera is not None and not isinstance(camera, str):
+        raise FieldFileError(f"field file {path}: camera must be a --camera spec such as mavlink:udpin:0.0.0.0:14560 "
+                             f"(got {camera!r})")
     if autopilot not in (None, *AUTOPILOTS):
         raise FieldFileError(f"field file {path}: autopilot must be one of {', '.join(AUTOPILOTS)} (got {autopilot!r})")
     dialect = d.get("dialect", "px4")  # field files written before dialects: PX4's
@@ -107,4 +114,4 @@ def read_field(path: Path) -> FieldSpec:
         if sdp is not None and not Path(sdp).is_absolute():
             sdp = str(Path(path).parent / sdp)
     return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
-                     video_uri=uri, video_sdp=sdp, autopilot=autopilot)
+                     video_uri=uri, video_sdp=sdp, autopilot=autopilot, camera=camera)

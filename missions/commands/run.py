@@ -63,12 +63,12 @@ def register(app: typer.Typer) -> None:
                                           "leave the vehicle flying without this companion (default: refuse to fly)."),
         signing_key_file: Path | None = typer.Option(
             None, "--signing-key-file", help="Sign the link (MAVLink 2): a chmod-600 file with 64 hex chars or a passphrase."),
-        camera: str = typer.Option(
-            "mavlink", "--camera",
+        camera: str | None = typer.Option(
+            None, "--camera",
             help="Where frames come from: mavlink (the MAVLink camera component on the vehicle's link), "
                  "mavlink:ADDRESS (the camera component on its own pymavlink address, e.g. udpin:0.0.0.0:14560), "
                  "video (the field file's video stream), or a video URL PyAV opens: udp://:5600 (RTP, with its SDP), "
-                 "rtsp://..., /dev/videoN, a file."),
+                 "rtsp://..., /dev/videoN, a file (default: the field file's camera, else mavlink)."),
         video_sdp: Path | None = typer.Option(
             None, "--video-sdp", help="The SDP file of an RTP video stream (default: the field file's)."),
     ) -> None:
@@ -147,6 +147,8 @@ def register(app: typer.Typer) -> None:
         from autopilot_bridge.camera.video import VideoSourceError
 
         try:
+            if camera is None:  # the field file's (a camera component beside a real autopilot), else the link's
+                camera = fs.camera if fs is not None and fs.camera else "mavlink"
             check_spec(camera if camera != "video" else "udp://")
         except CameraSpecError as e:
             raise typer.BadParameter(str(e), param_hint="--camera") from e

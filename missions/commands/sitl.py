@@ -263,10 +263,13 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
     address = world.companion_address()
     connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
     write_field(field_out, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
-                                     autopilot=autopilot),
+                                     autopilot=autopilot, camera=world.camera_address()),
                 seed + n, sitl=cfg.to_dict())
     typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
     typer.echo(f"    companion           uavsearch run --field {field_out}   ({connect})")
+    if world.camera_address() is not None:
+        typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on UDP {cfg.camera_ports[0]} -> "
+                   f"{cfg.camera_ports[1]} (run --camera {world.camera_address()})")
     typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
                f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m")
 

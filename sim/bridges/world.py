@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from sim.gridworld import GridConfig
+from sim.mavlink.camera_component import CameraComponent, CameraInfo
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig
 from sim.vehicle.motor_quad import MotorQuadrotor, hover_throttle
@@ -73,6 +74,11 @@ class AutopilotWorldConfig:
     #: ArduPilot: SERIAL1 to a ground station on 127.0.0.1:gcs_port; None: left on TCP 5762+10*N
     gcs_port: int | None = 14550
     params: dict[str, float] = field(default_factory=dict)  # extra autopilot parameters
+    #: the downward camera as a MAVLink camera component (100) on a UDP endpoint of its own,
+    #: as on a real drone beside its flight controller: it listens on camera_port + 40 and
+    #: sends to camera_port, where the companion opens `--camera mavlink:udpin:0.0.0.0:PORT`
+    #: (None: 14560 + instance); 0: no camera component
+    camera_port: int | None = None
     keep_dir: bool = False  # keep the autopilot's working directory (logs) after stop
 
     def __post_init__(self) -> None:
@@ -95,7 +101,16 @@ class AutopilotWorldConfig:
                 "home": {"lat": self.home.lat_deg, "lon": self.home.lon_deg, "alt": self.home.alt_m},
                 "grid": self.grid.to_dict(), "episode_seed": self.episode_seed, "seed": self.seed,
                 "camera": self.camera, "field_edge": self.field_edge, "target_step_s": self.target_step_s,
-                "api_port": self.api_port, "gcs_port": self.gcs_port, "params": dict(self.params)}
+                "api_port": self.api_port, "gcs_port": self.gcs_port, "params": dict(self.params),
+                "camera_port": self.camera_ports[1] if self.camera_ports else None}
+
+    @property
+    def camera_ports(self) -> tuple[int, int] | None:
+        """(the camera component's local port, the companion's port it sends to); None: none."""
+        if not self.camera or self.camera_port == 0:
+            return None
+        remote = 14560 + self.instance if self.camera_port is None else self.camera_port
+        return remote + 40, remote
 
 
 class AutopilotWorld:
@@ -114,6 +129,7 @@ class AutopilotWorld:
         self.height: list[float] = []  # true height over the field at the same times
         self._next_truth = 0.0
         self.process: AutopilotProcess | None = None
+        self.camera: CameraComponent | None = None
         if cfg.autopilot == "ardupilot":
             self.bridge: ArduPilotJsonBridge | Px4HilBridge = ArduPilotJsonBridge(
                 self.body, json_port(cfg.instance), on_step=self._on_step, lock=self.lock)
@@ -138,6 +154,27 @@ class AutopilotWorld:
         """The downward camera's frame now (a camera component's render function)."""
         with self.lock:
             return self.scene.render(self.bridge.t, position_ned, yaw)
+
+    def render_now(self) -> np.ndarray:
+        """The frame from where the body is now, on one step's state (the world's lock)."""
+        with self.lock:
+            s = self.body.state
+            return self.scene.render(self.bridge.t, s.position_ned.copy(), float(s.attitude_rpy[2]))
+
+    def camera_address(self) -> str | None:
+        """The companion's `--camera` spec for this world's camera component (None: none)."""
+        ports = self.cfg.camera_ports
+        return None if ports is None else f"mavlink:udpin:0.0.0.0:{ports[1]}"
+
+    def _start_camera(self) -> None:
+        """The camera component on its own UDP endpoint, stamping frames on the autopilot's
+        boot clock, so the companion reads frames and telemetry on one clock."""
+        local, remote = self.cfg.camera_ports
+        info = CameraInfo(width=self.cfg.camera_px, height=self.cfg.camera_px, hfov_deg=self.scene.cam.fov)
+        self.camera = CameraComponent.on_udp(self.render_now, self.autopilot_clock_s, local, remote,
+                                             system_id=self.cfg.sysid, info=info,
+                                             position=lambda: self.body.state.position_ned.copy())
+        self.camera.start()
 
     def companion_address(self) -> str:
         """The pymavlink address of the autopilot's API link, as the companion opens it."""
@@ -199,6 +236,8 @@ class AutopilotWorld:
                                                    params={**px4_params(EarthField()), **cfg.params},
                                                    keep_dir=cfg.keep_dir))
             wait_alive(self.process, alive_check_s)
+            if cfg.camera_ports is not None:
+                self._start_camera()
         except BaseException:
             self.stop()
             raise
@@ -216,6 +255,8 @@ class AutopilotWorld:
 
     def stop(self) -> None:
         self.bridge._stop.set()  # first: the autopilot's end closing the link is no error then
+        if self.camera is not None:
+            self.camera.close()
         if self.process is not None:
             self.process.stop()
         self.bridge.stop()
