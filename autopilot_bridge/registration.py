@@ -67,8 +67,8 @@ class Registration:
         self.found = found if found is not None else FoundTargets(spec, estimator, intake)
 
     def register_launch(self) -> None:
-        """Disarmed on the ground, the vehicle stands on home (its launch point, given in the
-        field frame by HOME_POSITION): each fix of LAUNCH_S simulated seconds is fused
+        """Disarmed on the ground, the vehicle stands on its launch point (SearchSpec.launch_ne,
+        its surveyed pad; else home, HOME_POSITION in the field frame, which our SITL sets there): each fix of LAUNCH_S simulated seconds is fused
         with that true position beside it, which averages the receiver's white noise out of
         the GPS bias, so the first cells are flown truly over their centres. (The vehicle waits
         disarmed for this companion, so those seconds are on the ground in every run.)"""
@@ -77,7 +77,7 @@ class Registration:
         t_start, t_end = self.launch_window()
         # every fix stamped up to t_end has arrived once a later one has
         self.link.wait_for(lambda: self.intake.last_gps_t > t_end + 1e-6, 30.0, f"GPS fixes after {t_end:.1f} s")
-        home = self.intake.home_in_field()[:2]
+        home = self.intake.home_in_field()[:2] if self.spec.launch_ne is None else np.asarray(self.spec.launch_ne)
         due = self.intake.take_fixes(t_start, t_end)
         for ft, ned, eph, epv in due:
             self.estimator.update(ft, ned, eph, epv)

@@ -53,6 +53,10 @@ class SearchSpec:
     #: the vehicle's companion-loss failsafe, read before take-off (autopilot_bridge.preflight):
     #: False refuses a vehicle it would leave flying, True sets the safe values (logged)
     set_failsafe: bool = False
+    #: where the vehicle truly stands at launch (field north, east m: its surveyed pad), which
+    #: the launch registration takes as the truth beside its fixes; None: HOME_POSITION, which
+    #: is that pad on our SITL but the GPS's (biased) fix at arming on a real autopilot
+    launch_ne: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):

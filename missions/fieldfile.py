@@ -49,6 +49,9 @@ class FieldSpec:
     #: the companion's `run --camera` spec for this vehicle's camera (a camera component on an
     #: address of its own, beside a real autopilot); None: the one on the vehicle's link
     camera: str | None = None
+    #: the vehicle's launch pad in the field frame (north, east m), where a real autopilot's
+    #: world sets it down: its HOME_POSITION is its GPS's fix there, not the pad
+    launch_ne: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -63,7 +66,8 @@ class FieldSpec:
                 "connect": self.connect, "instance": self.instance, "physics": self.physics, "edge": self.edge,
                 "dialect": self.dialect,
                 "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp},
-                "autopilot": self.autopilot, "camera": self.camera}
+                "autopilot": self.autopilot, "camera": self.camera,
+                "launch_ne": None if self.launch_ne is None else list(self.launch_ne)}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -96,6 +100,12 @@ def read_field(path: Path) -> FieldSpec:
         raise FieldFileError(f"field file {path}: edge must be true or false (got {edge!r})")
     autopilot = d.get("autopilot")
     camera = d.get("camera")
+    launch = d.get("launch_ne")
+    if launch is not None:
+        try:
+            launch = (float(launch[0]), float(launch[1]))
+        except (TypeError, ValueError, IndexError, KeyError):
+            raise FieldFileError(f"field file {path}: launch_ne must be [north, east] in metres (got {launch!r})") from None
     if camera is not None and not isinstance(camera, str):
         raise FieldFileError(f"field file {path}: camera must be a --camera spec such as mavlink:udpin:0.0.0.0:14560 "
                              f"(got {camera!r})")
@@ -114,4 +124,5 @@ def read_field(path: Path) -> FieldSpec:
         if sdp is not None and not Path(sdp).is_absolute():
             sdp = str(Path(path).parent / sdp)
     return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
-                     video_uri=uri, video_sdp=sdp, autopilot=autopilot, camera=camera)
+                     video_uri=uri, video_sdp=sdp, autopilot=autopilot, camera=camera,
+                     launch_ne=launch)

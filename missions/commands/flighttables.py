@@ -25,11 +25,16 @@ def register(app: typer.Typer) -> None:
         policy: str | None = typer.Option(None, "--policy", help="Registered policy (default: the flight default)."),
         max_moves: int | None = typer.Option(None, "--max-moves", min=1, help="Cap per flight (default: t_e)."),
         out: Path = typer.Option(Path("results"), "--out"),
+        autopilot: str = typer.Option(
+            "ours", "--autopilot", help="Who flies: ours (our SITL vehicle), or the real ardupilot / px4 SITL binary "
+                                        "($ARDUPILOT_SITL / $PX4_SITL) on our world's physics."),
     ) -> None:
         """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
         from missions.flight_table import flight_vs_grid
 
-        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves)
+        if autopilot not in ("ours", "ardupilot", "px4"):
+            raise typer.BadParameter(f"{autopilot!r}: expected ours, ardupilot or px4", param_hint="--autopilot")
+        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot)
         s = doc["summary"]
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")

@@ -204,7 +204,7 @@ def register(app: typer.Typer) -> None:
         try:
             with FlightProgress(f"search ({pol.name})") as progress:
                 spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge,
-                                  set_failsafe=set_failsafe)
+                                  set_failsafe=set_failsafe, launch_ne=fs.launch_ne if fs is not None else None)
                 service = PolicyService(link, pol, spec, seed,
                                         on_progress=progress, frames=frames)
                 if hasattr(frames, "clock"):  # a stream's unstamped frames: on the vehicle's clock

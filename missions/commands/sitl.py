@@ -263,7 +263,8 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
     address = world.companion_address()
     connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
     write_field(field_out, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
-                                     autopilot=autopilot, camera=world.camera_address()),
+                                     autopilot=autopilot, camera=world.camera_address(),
+                                     launch_ne=tuple(float(v) for v in world.scene.spawn_ne)),
                 seed + n, sitl=cfg.to_dict())
     typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
     typer.echo(f"    companion           uavsearch run --field {field_out}   ({connect})")
