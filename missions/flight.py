@@ -6,7 +6,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -138,7 +138,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                policy: str | None = None, on_abort: str = "rtl", progress: bool = False,
                physics: str = "pybullet", gps_sigma_m: float | None = None, visit_map: str = "probabilistic",
                free_ports: bool = False, plot: bool = True, lockstep: bool = True,
-               camera: str = "mavlink") -> dict[str, Any]:
+               camera: str = "mavlink", autopilot: str = "ours") -> dict[str, Any]:
     """Start SITL in-process, fly a policy (default: the best shipped one) over MAVLink, write
     report + plot + tlog. Any failure or Ctrl-C brings the vehicle down first (missions.guarded);
     report['outcome'] says how the flight ended, report['error'] what stopped it, if anything.
@@ -175,12 +175,18 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=grid,
                      episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True, gps=gps,
                      companion_lockstep=lockstep, video=video, **ports)
-    link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
-    try:
-        sitl = _truth_sitl(cfg).start()
-    except BaseException:
-        link.close()
-        raise
+    held = ExitStack()
+    frames = None
+    if autopilot != "ours":  # a real autopilot binary flies our world (sim.bridges)
+        sitl, link, frames = _real_autopilot(held, autopilot, speedup, grid, seed, gps, cfg.field_edge, out)
+        lockstep = False
+    else:
+        link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
+        try:
+            sitl = _truth_sitl(cfg).start()
+        except BaseException:
+            link.close()
+            raise
     track: list[np.ndarray] = []
     herd: list[np.ndarray] = []  # the targets' cells at the same instants as track
     stop = threading.Event()
@@ -195,9 +201,10 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
     spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves, visit_map=visit_map,
-                      field_edge=cfg.field_edge)
+                      field_edge=cfg.field_edge, set_failsafe=autopilot != "ours",
+                      # a real autopilot's home is its GPS fix at arming: the pad it stands on is given
+                      launch_ne=None if autopilot == "ours" else tuple(float(v) for v in sitl.world.scene.spawn_ne))
     t0 = time.monotonic()
-    frames = None
     try:
         if video.enabled:
             from autopilot_bridge.camera import MavlinkCamera
@@ -221,6 +228,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
         if frames is not None:
             frames.close()
         sitl.stop()
+        held.close()
     targets = sitl.episode.targets[0]
     n = min(len(track), len(herd))
     tr = np.array(track[:n]) if n else np.zeros((0, 2))
@@ -239,7 +247,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     truth = np.array(sitl.truth) if sitl.truth else np.zeros((0, 3))
     cons = consistency(log.times_s, log.posterior_mean_ne, log.posterior_cov_ne, truth)
     save_log(log, out / "search_log.json", outcome=end.to_dict(), true_ne=cons.get("true_ne", []))
-    report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": physics},
+    report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": physics,
+                                               "autopilot": autopilot},
                    policy=pol.name, outcome=end.to_dict(),
                    moves=moves, optimal_moves=optimal, ratio_to_optimal=moves / max(optimal, 1),
                    grid_moves=in_grid, flight_grid_ratio=None if in_grid is None else moves / max(in_grid, 1),
@@ -259,7 +268,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    decision_ms_p50=float(np.percentile(log.decision_ms, 50)) if log.decision_ms else None,
                    decision_ms_p99=float(np.percentile(log.decision_ms, 99)) if log.decision_ms else None,
                    simulated_s=sim_time, wall_s=time.monotonic() - t0, error=error,
-                   tlog=str(out / "flight.tlog"), plot=str(out / "search.png"))
+                   tlog=str(out / ("flight.tlog" if autopilot == "ours" else "companion.tlog")),
+                   plot=str(out / "search.png"))
     atomic_write_json(out / "report.json", report)
     if plot and log.cells:
         from dataclasses import asdict
@@ -275,6 +285,33 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
         write_report(out, report, {**asdict(log), "true_ne": cons.get("true_ne", [])}, service.pmap.visited,
                      service.pmap.met, targets, frames)
     return report
+
+
+def _real_autopilot(held: ExitStack, autopilot: str, speedup: float, grid: GridConfig, seed: int, gps: Any,
+                    field_edge: bool, out: Path) -> tuple[Any, Any, Any]:
+    """The real autopilot's world on an instance this flight holds, started, with the
+    companion's link and camera: (the scorer's view of it, the link, the frame source). The
+    companion connects before the binary starts, so it hears from the first heartbeat."""
+    from autopilot_bridge.camera import open_source
+    from autopilot_bridge.link import VehicleLink
+    from missions.autopilot_flight import WorldVehicle, hold_instance
+    from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
+
+    instance = held.enter_context(hold_instance())
+    world = AutopilotWorld(AutopilotWorldConfig(
+        autopilot=autopilot, instance=instance, speedup=speedup, grid=grid, episode_seed=seed, seed=seed, gps=gps,
+        field_edge=field_edge, gcs_port=None))
+    link = VehicleLink(world.companion_address().replace("udpin:127.0.0.1:", "udpin:0.0.0.0:"),
+                       tlog=out / "companion.tlog")
+    try:
+        world.start()
+        frames = open_source(world.camera_address(), link, timeout_s=30.0, tlog=out / "camera.tlog")
+    except BaseException:
+        link.close()
+        world.stop()
+        held.close()
+        raise
+    return WorldVehicle(world), link, frames
 
 
 def _free_udp_ports(n: int) -> list[int]:
