@@ -1,6 +1,6 @@
 """A search flight that always ends with the vehicle on the ground or told to get there.
 
-`guarded_search` runs take-off, search and landing; whatever stops it (Ctrl-C, SIGTERM, a
+`guarded_search` runs take-off (or the rejoin of a resumed search), search and landing; whatever stops it (Ctrl-C, SIGTERM, a
 link error, a timeout, an exception in the policy) it stops the OFFBOARD stream, hands the
 vehicle to `--on-abort` (rtl, land or hold; see autopilot_bridge.abort), waits bounded for the
 disarm, and returns the cause and the exit status for the CLI. Signals raise in the main
@@ -15,6 +15,8 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+
+import numpy as np
 
 from autopilot_bridge.abort import AbortAction, Touchdown, bring_down
 from autopilot_bridge.link import VehicleLink
@@ -78,11 +80,18 @@ class FlightEnd:
 
 def guarded_search(service: PolicyService, link: VehicleLink, on_abort: AbortAction | str = AbortAction.rtl,
                    abort_timeout_s: float = 120.0, hold_s: float = 60.0,
-                   echo: Callable[[str], None] = print, move_timeout_s: float = 20.0) -> FlightEnd:
+                   echo: Callable[[str], None] = print, move_timeout_s: float = 20.0,
+                   rejoin: Callable[[], tuple[int, np.ndarray, float]] | None = None) -> FlightEnd:
+    """rejoin: a journaled search resumed (`uavsearch run --resume`): instead of the take-off,
+    it takes the vehicle back wherever it is (autopilot_bridge.resume) and returns the decision
+    loop's (move, cell, t_k) to go on from; a failure there brings the vehicle down as any."""
     with signals_raise() as sig:
         try:
-            service.take_off()
-            service.run(timeout_per_move=move_timeout_s)
+            if rejoin is None:
+                service.take_off()
+                service.run(timeout_per_move=move_timeout_s)
+            else:
+                service.run(timeout_per_move=move_timeout_s, resume=rejoin())
             service.land()
             found, need = len(service.log.believed_found), service.spec.grid.n_targets
             if found < need:
