@@ -81,9 +81,10 @@ def rejoin(service: PolicyService, doc: JournalDoc, loop: LoopState, timeout: fl
     link.wait_for(lambda: bool(tel.home) and tel.gps.get("fix_type", 0) >= 3 and bool(intake.local_history),
                   timeout, "GPS fix, home position and the autopilot's position estimate")
     saved_t = float(doc.meta["vehicle"]["sim_time_s"])
-    if intake.sim_time_s + 1e-6 < saved_t:
+    clock = intake.local_history[-1][0]  # the vehicle's clock now, by this link (the intake's own holds the journal's)
+    if clock + 1e-6 < saved_t:
         raise JournalError(
-            f"the vehicle's clock is at {intake.sim_time_s:.1f} s, before {saved_t:.1f} s when {doc.path} was "
+            f"the vehicle's clock is at {clock:.1f} s, before {saved_t:.1f} s when {doc.path} was "
             "written: the autopilot has restarted since, and the journal's times, home and GPS bias are not "
             "its; a restarted autopilot is not rejoined: start a new search (another --out)")
     home_moved = _follow_home(service, doc)

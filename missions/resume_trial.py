@@ -81,7 +81,9 @@ def vehicle(tmp: Path, seed: int, base_port: int, grid: GridConfig | None = None
 
 def companion(*args: str) -> subprocess.Popen:
     """`uavsearch run ARGS` as its own process, stdout and stderr merged, line-buffered."""
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    root = str(Path(__file__).resolve().parent.parent)  # this checkout's packages, whatever is installed
+    path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path}
     return subprocess.Popen([sys.executable, "-m", "missions", "run", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, bufsize=1, env=env)
 

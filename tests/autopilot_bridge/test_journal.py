@@ -13,7 +13,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from autopilot_bridge.journal import JOURNAL, Journal, JournalError, LoopState, load, read, save, state_of
+from autopilot_bridge.journal import (
+    JOURNAL,
+    Journal,
+    JournalError,
+    LoopState,
+    load,
+    read,
+    save,
+    state_of,
+)
 from autopilot_bridge.link import VehicleLink
 from autopilot_bridge.service import PolicyService, SearchSpec
 from autopilot_bridge.snapshot import restore, snapshot

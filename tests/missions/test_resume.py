@@ -9,7 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from missions.resume_trial import companion, kill_at_move, search_log, truly_found, vehicle, wait_until
+from missions.resume_trial import (
+    companion,
+    kill_at_move,
+    search_log,
+    truly_found,
+    vehicle,
+    wait_until,
+)
 from sim.gridworld import GridConfig
 
 pytestmark = pytest.mark.slow
