@@ -21,8 +21,8 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -32,6 +32,7 @@ from missions.resume_trial import (
     companion,
     kill_at_move,
     search_log,
+    start_companion,
     truly_found,
     vehicle,
     wait_until,
@@ -54,10 +55,12 @@ def seeds_from(text: str) -> list[int]:
 def fly(tmp: Path, seed: int, port: int, grid: GridConfig, speedup: float, policy: str) -> dict:
     """The search from scratch: moves, exit, found."""
     out = tmp / f"fresh-{seed}"
-    with vehicle(tmp, seed, port, grid, speedup) as v:
-        p = companion("--field", str(v.field_file), "--out", str(out), "--seed", str(seed), "--policy", policy,
-                      "--no-tlog")
+    shutil.rmtree(out, ignore_errors=True)
+    with vehicle(out.parent, seed, port, grid, speedup) as v:
+        p, head = start_companion(v, "--field", str(v.field_file), "--out", str(out), "--seed", str(seed),
+                                  "--policy", policy, "--no-tlog")
         text, _ = p.communicate(timeout=900)
+        text = "".join(head) + text
         truly = truly_found(v)
     log = search_log(out)
     return {"moves": len(log["cells"]) - 1, "exit": p.returncode, "believed": len(log["believed_found"]),
@@ -67,10 +70,11 @@ def fly(tmp: Path, seed: int, port: int, grid: GridConfig, speedup: float, polic
 def killed_and_resumed(tmp: Path, seed: int, port: int, grid: GridConfig, speedup: float, policy: str,
                        kill_move: int, delay_s: float, wait_landed: bool) -> dict:
     out = tmp / f"resumed-{seed}"
-    with vehicle(tmp, seed, port, grid, speedup) as v:
-        p = companion("--field", str(v.field_file), "--out", str(out), "--seed", str(seed), "--policy", policy,
-                      "--no-tlog")
-        before = kill_at_move(p, kill_move, delay_s, timeout=900)
+    shutil.rmtree(out, ignore_errors=True)
+    with vehicle(out.parent, seed, port, grid, speedup) as v:
+        p, head = start_companion(v, "--field", str(v.field_file), "--out", str(out), "--seed", str(seed),
+                                  "--policy", policy, "--no-tlog")
+        before = "".join(head) + kill_at_move(p, kill_move, delay_s, timeout=900)
         t_kill = time.monotonic()
         mode_at_kill = v.sitl.vehicle.mode
         landed = wait_until(lambda: v.landed_disarmed, 180) if wait_landed else False
@@ -93,28 +97,29 @@ def main() -> None:
     ap.add_argument("--speedup", type=float, default=10.0)
     ap.add_argument("--policy", default="belief")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "resume.md")
+    ap.add_argument("--work", type=Path, default=ROOT / "out" / "bench_resume",
+                    help="The runs' directories (journals, logs, plots), kept for a look afterwards.")
     args = ap.parse_args()
     grid = GridConfig()
     rows = []
     t0 = time.monotonic()
-    with tempfile.TemporaryDirectory(prefix="bench_resume_") as td:
-        tmp = Path(td)
-        for i, seed in enumerate(seeds_from(args.seeds)):
-            fresh = fly(tmp, seed, BASE_PORT + 10 * (2 * i), grid, args.speedup, args.policy)
-            rng = np.random.default_rng([seed, 0x4E5])
-            kill = int(rng.integers(3, max(fresh["moves"] - 2, 4)))
-            delay = float(rng.uniform(0.0, 0.4))
-            res = killed_and_resumed(tmp, seed, BASE_PORT + 10 * (2 * i + 1), grid, args.speedup, args.policy,
-                                     kill, delay, wait_landed=i % 2 == 1)
-            before = res["resume"]["at_move"] if res["resume"] else None
-            row = {"seed": seed, "fresh": fresh, "resumed": res,
-                   "complete": res["exit"] == 0 and res["believed"] == grid.n_targets,
-                   "moves_before_kill": before,
-                   "start_over_moves": None if before is None else before + fresh["moves"]}
-            rows.append(row)
-            print(json.dumps({k: v for k, v in row.items() if k not in ("fresh", "resumed")}
-                             | {"resumed_moves": res["moves"], "fresh_moves": fresh["moves"],
-                                "how": res["resume"]["how"] if res["resume"] else None}), flush=True)
+    tmp = args.work
+    for i, seed in enumerate(seeds_from(args.seeds)):
+        fresh = fly(tmp, seed, BASE_PORT + 10 * (2 * i), grid, args.speedup, args.policy)
+        rng = np.random.default_rng([seed, 0x4E5])
+        kill = int(rng.integers(3, max(fresh["moves"] - 2, 4)))
+        delay = float(rng.uniform(0.0, 0.4))
+        res = killed_and_resumed(tmp, seed, BASE_PORT + 10 * (2 * i + 1), grid, args.speedup, args.policy,
+                                 kill, delay, wait_landed=i % 2 == 1)
+        before = res["resume"]["at_move"] if res["resume"] else None
+        row = {"seed": seed, "fresh": fresh, "resumed": res,
+               "complete": res["exit"] == 0 and res["believed"] == grid.n_targets,
+               "moves_before_kill": before,
+               "start_over_moves": None if before is None else before + fresh["moves"]}
+        rows.append(row)
+        print(json.dumps({k: v for k, v in row.items() if k not in ("fresh", "resumed")}
+                         | {"resumed_moves": res["moves"], "fresh_moves": fresh["moves"],
+                            "how": res["resume"]["how"] if res["resume"] else None}), flush=True)
     wall = time.monotonic() - t0
     command = "python benchmarks/bench_resume.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     prov = stamp({"seeds": args.seeds, "speedup": args.speedup, "policy": args.policy, "grid": grid.to_dict(),

@@ -38,6 +38,29 @@ class Vehicle:
     sitl: Any
     field_file: Path
     track: list[np.ndarray] = field(default_factory=list)
+    started: bool = False
+    _stop: threading.Event = field(default_factory=threading.Event)
+    _watcher: threading.Thread | None = None
+
+    def start(self) -> None:
+        """Start the vehicle, and the scorer's view of its truth (never given to the companion)."""
+        self.sitl.start()
+        self.started = True
+
+        def watch() -> None:
+            while not self._stop.is_set():
+                self.track.append(self.sitl.vehicle_cell().copy())
+                time.sleep(0.05)
+
+        self._watcher = threading.Thread(target=watch, daemon=True)
+        self._watcher.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._watcher is not None:
+            self._watcher.join()
+        if self.started:
+            self.sitl.stop()
 
     @property
     def landed_disarmed(self) -> bool:
@@ -49,7 +72,10 @@ class Vehicle:
 def vehicle(tmp: Path, seed: int, base_port: int, grid: GridConfig | None = None,
             speedup: float = 10.0) -> Iterator[Vehicle]:
     """Our SITL on ports base_port .. base_port + 3 (vehicle API, companion, GCS pair), with
-    companion lockstep, and its field file (the companion at udpin:127.0.0.1:base_port + 1)."""
+    companion lockstep, and its field file (the companion at udpin:127.0.0.1:base_port + 1).
+    Not started: `Vehicle.start` once the companion listens (`companion_up`), so the flight's
+    schedule does not depend on how long the companion took to load (as missions.flight
+    starts its link first): a seed then flies the same search every time."""
     from missions.flight import _truth_sitl
     from sim.mavlink import SitlConfig
 
@@ -57,26 +83,39 @@ def vehicle(tmp: Path, seed: int, base_port: int, grid: GridConfig | None = None
     cfg = SitlConfig(speedup=speedup, camera=True, grid=grid, episode_seed=seed, seed=seed, companion_lockstep=True,
                      api_local_port=base_port, api_remote_port=base_port + 1, gcs_local_port=base_port + 2,
                      gcs_remote_port=base_port + 3, bind="127.0.0.1")
-    sitl = _truth_sitl(cfg).start()
+    sitl = _truth_sitl(cfg)
     field_file = tmp / "field.json"
     write_field(field_file, FieldSpec(sitl.field_origin, grid, 2.0, f"udpin:127.0.0.1:{base_port + 1}", None,
                                       cfg.physics, cfg.field_edge), seed)
     v = Vehicle(sitl, field_file)
-    stop = threading.Event()
-
-    def watch() -> None:  # the scorer's view of the truth, never given to the companion
-        while not stop.is_set():
-            v.track.append(sitl.vehicle_cell().copy())
-            time.sleep(0.05)
-
-    watcher = threading.Thread(target=watch, daemon=True)
-    watcher.start()
     try:
         yield v
     finally:
-        stop.set()
-        watcher.join()
-        sitl.stop()
+        v.stop()
+
+
+def start_companion(v: Vehicle, *args: str, timeout: float = 120.0) -> tuple[subprocess.Popen, list[str]]:
+    """`uavsearch run ARGS`, and the vehicle started once it listens (its "connecting to"
+    line). Returns the process and the lines it printed up to then."""
+    proc = companion(*args)
+    lines = read_until(proc, "connecting to", timeout)
+    if not v.started:
+        v.start()
+    return proc, lines
+
+
+def read_until(proc: subprocess.Popen, text: str, timeout: float) -> list[str]:
+    """Lines of proc's output up to and including the first holding `text` (or its end)."""
+    lines: list[str] = []
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = proc.stdout.readline()  # type: ignore[union-attr]
+        if not line:
+            break
+        lines.append(line)
+        if text in line:
+            break
+    return lines
 
 
 def companion(*args: str) -> subprocess.Popen:
@@ -91,17 +130,10 @@ def companion(*args: str) -> subprocess.Popen:
 def kill_at_move(proc: subprocess.Popen, move: int, delay_s: float = 0.0, timeout: float = 300.0) -> str:
     """SIGKILL the companion delay_s after it reports decision `move` (its progress line), or
     when it ends first. Returns what it printed."""
-    lines: list[str] = []
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        line = proc.stdout.readline()  # type: ignore[union-attr]
-        if not line:
-            break
-        lines.append(line)
-        if f": move {move}/" in line:
-            time.sleep(delay_s)
-            proc.send_signal(signal.SIGKILL)
-            break
+    lines = read_until(proc, f": move {move}/", timeout)
+    if lines and f": move {move}/" in lines[-1]:
+        time.sleep(delay_s)
+        proc.send_signal(signal.SIGKILL)
     rest, _ = proc.communicate(timeout=30)
     return "".join(lines) + (rest or "")
 

@@ -13,6 +13,7 @@ from missions.resume_trial import (
     companion,
     kill_at_move,
     search_log,
+    start_companion,
     truly_found,
     vehicle,
     wait_until,
@@ -27,8 +28,8 @@ def test_a_killed_companion_resumes_the_search_after_its_vehicle_landed(tmp_path
     grid = GridConfig(width=6, height=6, n_targets=3)
     out = tmp_path / "run"
     with vehicle(tmp_path, 5, BASE_PORT, grid, speedup=12.0) as v:
-        run = companion("--field", str(v.field_file), "--out", str(out), "--seed", "5", "--no-tlog")
-        before = kill_at_move(run, 5)
+        run, head = start_companion(v, "--field", str(v.field_file), "--out", str(out), "--seed", "5", "--no-tlog")
+        before = "".join(head) + kill_at_move(run, 5)
         assert run.returncode == -9 and ": move 5/" in before, before
         # its offboard-loss failsafe holds, then returns and lands it
         assert wait_until(lambda: v.landed_disarmed, 90), "the vehicle landed by itself"
