@@ -27,7 +27,7 @@ import json
 import math
 import time
 from collections import deque
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -244,11 +244,10 @@ def _restore(service: PolicyService, tree: dict[str, Any], arrays: dict[str, np.
     part = {k: dec.decode(v, None, k) for k, v in tree.items() if k != "policy"}
     sv = part["service"]
     service.rng = sv["rng"]
-    log = SearchLog(**sv["log"])
-    log.cells = [tuple(c) for c in log.cells]
-    service.log = log
-    # the parts that write the log hold it too
-    service.pilot.log = log
+    saved = SearchLog(**sv["log"])  # a field missing or unknown is another version's journal
+    saved.cells = [tuple(c) for c in saved.cells]
+    for f in fields(SearchLog):  # in place: the parts that write the log (the pilot) hold it too
+        setattr(service.log, f.name, getattr(saved, f.name))
     service.kept_frames = [tuple(f) for f in sv["kept_frames"]]
     service.last_frame = None if sv["last_frame"] is None else tuple(sv["last_frame"])
     est, e = service.estimator, part["estimator"]

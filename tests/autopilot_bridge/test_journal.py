@@ -190,7 +190,7 @@ def test_a_journal_killed_mid_write_still_loads(tmp_path: Path) -> None:
 
     rng = np.random.default_rng(11)
     moves = []
-    for i in range(3):
+    for i in range(2):
         p = subprocess.Popen([sys.executable, "-c", _WRITER, str(tmp_path / "j"), f"udpin:127.0.0.1:{IDLE_PORT + 5 + i}"],
                              stdout=subprocess.PIPE, text=True, env={**os.environ})
         assert p.stdout.readline().strip() == "writing"
@@ -203,7 +203,7 @@ def test_a_journal_killed_mid_write_still_loads(tmp_path: Path) -> None:
         _arrays(doc)  # whole, with its SHA-256
         assert len(doc.meta["state"]["service"]["log"]["cells"]) == doc.loop.move + 1
         moves.append(doc.loop.move)
-    assert max(moves) > 3, f"it wrote journals before each kill ({moves})"
+    assert min(moves) > 2, f"it wrote journals before each kill ({moves})"
 
 
 def _text(output: str) -> str:
