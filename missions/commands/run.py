@@ -244,7 +244,7 @@ def register(app: typer.Typer) -> None:
             link.close()
         log = end.log
         save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed),
-                 resumes=journal.resumes)
+                 resumes=journal.resumes, journal={"writes": journal.writes, "write_s": round(journal.write_s, 3)})
         moves = max(len(log.cells) - 1, 0)
         if log.cells:
             from missions.run_plot import plot_decisions

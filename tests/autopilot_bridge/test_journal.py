@@ -258,3 +258,35 @@ def test_a_bad_journal_is_refused_naming_the_file(tmp_path: Path) -> None:
     # a new search into a directory whose search has not ended: it says how to go on with it
     r = runner.invoke(app, ["run", "--field", str(tmp_path / "f.json"), "--out", str(d)], env={"COLUMNS": "400"})
     assert r.exit_code == 2 and "--resume" in _text(r.output) and "3 moves" in _text(r.output), r.output
+
+
+def test_rejoin_refuses_a_restarted_vehicle_and_takes_a_landed_one_off_again(tmp_path: Path) -> None:
+    """A vehicle whose clock is behind the journal's has restarted: refused, naming the journal.
+    One on the ground with its clock on: armed, taken off, in OFFBOARD, the next decision on
+    the journal's lattice a period ahead of its clock."""
+    from autopilot_bridge.resume import rejoin
+    from provenance import atomic_write_json
+    from sim.mavlink import Sitl, SitlConfig
+
+    grid = GridConfig(width=6, height=6, n_targets=2)
+    sitl = Sitl(SitlConfig(speedup=4.0, physics="kinematic", camera=False, gcs_link=False, grid=grid,
+                           api_local_port=IDLE_PORT + 8, api_remote_port=IDLE_PORT + 9, bind="127.0.0.1")).start()
+    link = VehicleLink(f"udpin:127.0.0.1:{IDLE_PORT + 9}")
+    try:
+        svc = PolicyService(link, flight_policy("frontier", None, grid, 0), SearchSpec(sitl.field_origin, grid), 0)
+        svc.policy.reset(grid, 1, 0)
+        save(tmp_path, svc, LoopState(3, (1, 2), 2.0))
+        doc = read(tmp_path)
+        atomic_write_json(doc.path, {**doc.meta, "vehicle": {**doc.meta["vehicle"], "sim_time_s": 1e6}})
+        with pytest.raises(JournalError, match=r"journal\.json.*restarted"):
+            rejoin(svc, read(tmp_path), doc.loop, timeout=20)
+        r = rejoin(svc, doc, doc.loop, timeout=30)
+        assert r.how == "took off again" and not r.armed_found
+        link.wait_for(lambda: link.telemetry.mode == "OFFBOARD", 5.0, "OFFBOARD in the heartbeat")
+        assert link.telemetry.armed and -link.telemetry.local["d"] > 2.5, "in the air"
+        now = svc.intake.local_history[-1][0]
+        assert (r.t_k - 2.0) % 4.0 == pytest.approx(0.0) and now + 4.0 <= r.t_k + 0.5 < now + 8.5
+    finally:
+        svc.stop_setpoints()
+        link.close()
+        sitl.stop()
