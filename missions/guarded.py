@@ -1,11 +1,12 @@
 """A search flight that always ends with the vehicle on the ground or told to get there.
 
-`guarded_search` runs take-off (or the rejoin of a resumed search), search and landing; whatever stops it (Ctrl-C, SIGTERM, a
-link error, a timeout, an exception in the policy) it stops the OFFBOARD stream, hands the
-vehicle to `--on-abort` (rtl, land or hold; see autopilot_bridge.abort), waits bounded for the
-disarm, and returns the cause and the exit status for the CLI. Signals raise in the main
-thread only while the flight runs; during the bring-down a further signal only ends the wait
-(the vehicle keeps its RTL/LAND), it never interrupts a command half-sent.
+`guarded_search` runs take-off (or a resumed search's rejoin), search and landing; whatever
+stops it (Ctrl-C, SIGTERM, a link error, a timeout, an exception in the policy) it stops the
+OFFBOARD stream, hands the vehicle to `--on-abort` (rtl, land or hold; see
+autopilot_bridge.abort), waits bounded for the disarm, and returns the cause and the exit
+status for the CLI. Signals raise in the main thread only while the flight runs; during the
+bring-down a further signal only ends the wait (the vehicle keeps its RTL/LAND), it never
+interrupts a command half-sent.
 """
 
 from __future__ import annotations
