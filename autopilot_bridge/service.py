@@ -82,6 +82,9 @@ class PolicyService:
         self.found = FoundTargets(spec, self.estimator, self.intake)
         self.registration = Registration(link, spec, self.estimator, self.intake, self.found)
         self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log, self.frames)
+        #: called after each decision with (next move, its cell, its simulated time): the
+        #: journal a restarted companion resumes from (autopilot_bridge.journal); None: none
+        self.journal: Callable[[int, np.ndarray, float], None] | None = None
 
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
@@ -111,28 +114,36 @@ class PolicyService:
                 raise LinkError(f"no settled arrival over cell {tuple(int(c) for c in cell)} within {timeout:.0f} s")
             t_at = t_frame + half
 
-    def run(self, timeout_per_move: float = 20.0) -> SearchLog:
+    def run(self, timeout_per_move: float = 20.0,
+            resume: tuple[int, np.ndarray, float] | None = None) -> SearchLog:
+        """The search. resume: (move, cell, t_k) to go on from, with this service's state
+        restored from a journal and the vehicle in the air (autopilot_bridge.resume)."""
         g = self.spec.grid
         max_moves = self.spec.max_moves or g.t_e
         t_start = self.clock()
-        post = self.estimator.posterior()
-        cell = np.clip(nearest_cell(post.mean_ned[:2]), [0, 0], [g.width - 1, g.height - 1])
-        local = self.pilot.fly_to(cell)
-        # the first decision: a period after take_off handed over (the first leg and settling)
-        t_off = self.pilot.t_offboard if self.pilot.t_offboard is not None else self.intake.sim_time_s
-        t_k = t_off + self.spec.decision_period_s
-        if self.registration.launch_registered:
-            # likewise the climb's tail and the first leg: the hover's fixes before the first
-            # decision stand for them
-            self.intake.skip_fixes_until(t_k - self.spec.decision_period_s / 2)
-        # the policy's own random stream (its tie-breaks) from the flight's seed, as
-        # missions.flight.grid_moves seeds the same policy on the same episode in the grid world:
-        # the flight/grid yardstick then differs by what flying changes, not by the ties drawn
-        # (drawn from this service's stream before: flight seed 16 took 12 moves, the grid
-        # world 33, seed 25 36 against 24)
-        self.policy.reset(g, 1, self.seed)
-        found = 0
-        for move in range(max_moves + 1):
+        if resume is not None:
+            first, cell, t_k = resume
+            local = self.pilot.fly_to(cell)
+        else:
+            first = 0
+            post = self.estimator.posterior()
+            cell = np.clip(nearest_cell(post.mean_ned[:2]), [0, 0], [g.width - 1, g.height - 1])
+            local = self.pilot.fly_to(cell)
+            # the first decision: a period after take_off handed over (the first leg and settling)
+            t_off = self.pilot.t_offboard if self.pilot.t_offboard is not None else self.intake.sim_time_s
+            t_k = t_off + self.spec.decision_period_s
+            if self.registration.launch_registered:
+                # likewise the climb's tail and the first leg: the hover's fixes before the first
+                # decision stand for them
+                self.intake.skip_fixes_until(t_k - self.spec.decision_period_s / 2)
+            # the policy's own random stream (its tie-breaks) from the flight's seed, as
+            # missions.flight.grid_moves seeds the same policy on the same episode in the grid world:
+            # the flight/grid yardstick then differs by what flying changes, not by the ties drawn
+            # (drawn from this service's stream before: flight seed 16 took 12 moves, the grid
+            # world 33, seed 25 36 against 24)
+            self.policy.reset(g, 1, self.seed)
+        found = len(self.log.believed_found)
+        for move in range(first, max_moves + 1):
             for attempt in range(RECENTRE + 1):
                 frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
                 t0 = time.perf_counter()
@@ -249,7 +260,9 @@ class PolicyService:
                 cell = cell + DELTAS[a]
                 local = self.pilot.fly_to(cell)
             t_k = t_k + self.spec.decision_period_s
-        self.log.wall_s = self.clock() - t_start
+            if self.journal is not None:
+                self.journal(move + 1, cell, t_k)
+        self.log.wall_s += self.clock() - t_start
         self.log.late_inputs = self.intake.input_waits_timed_out
         return self.log
 

@@ -1,11 +1,12 @@
 """A search flight that always ends with the vehicle on the ground or told to get there.
 
-`guarded_search` runs take-off, search and landing; whatever stops it (Ctrl-C, SIGTERM, a
-link error, a timeout, an exception in the policy) it stops the OFFBOARD stream, hands the
-vehicle to `--on-abort` (rtl, land or hold; see autopilot_bridge.abort), waits bounded for the
-disarm, and returns the cause and the exit status for the CLI. Signals raise in the main
-thread only while the flight runs; during the bring-down a further signal only ends the wait
-(the vehicle keeps its RTL/LAND), it never interrupts a command half-sent.
+`guarded_search` runs take-off (or a resumed search's rejoin), search and landing; whatever
+stops it (Ctrl-C, SIGTERM, a link error, a timeout, an exception in the policy) it stops the
+OFFBOARD stream, hands the vehicle to `--on-abort` (rtl, land or hold; see
+autopilot_bridge.abort), waits bounded for the disarm, and returns the cause and the exit
+status for the CLI. Signals raise in the main thread only while the flight runs; during the
+bring-down a further signal only ends the wait (the vehicle keeps its RTL/LAND), it never
+interrupts a command half-sent.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+
+import numpy as np
 
 from autopilot_bridge.abort import AbortAction, Touchdown, bring_down
 from autopilot_bridge.link import VehicleLink
@@ -78,11 +81,18 @@ class FlightEnd:
 
 def guarded_search(service: PolicyService, link: VehicleLink, on_abort: AbortAction | str = AbortAction.rtl,
                    abort_timeout_s: float = 120.0, hold_s: float = 60.0,
-                   echo: Callable[[str], None] = print, move_timeout_s: float = 20.0) -> FlightEnd:
+                   echo: Callable[[str], None] = print, move_timeout_s: float = 20.0,
+                   rejoin: Callable[[], tuple[int, np.ndarray, float]] | None = None) -> FlightEnd:
+    """rejoin: a journaled search resumed (`uavsearch run --resume`): instead of the take-off,
+    it takes the vehicle back wherever it is (autopilot_bridge.resume) and returns the decision
+    loop's (move, cell, t_k) to go on from; a failure there brings the vehicle down as any."""
     with signals_raise() as sig:
         try:
-            service.take_off()
-            service.run(timeout_per_move=move_timeout_s)
+            if rejoin is None:
+                service.take_off()
+                service.run(timeout_per_move=move_timeout_s)
+            else:
+                service.run(timeout_per_move=move_timeout_s, resume=rejoin())
             service.land()
             found, need = len(service.log.believed_found), service.spec.grid.n_targets
             if found < need:

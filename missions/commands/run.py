@@ -2,13 +2,19 @@
 
 Every exit path brings the vehicle down (see missions/guarded.py) and writes the search log;
 the exit status says how it ended: 0 all |R| found and landed, 3 the search ended short of |R|,
-1 a failure (the vehicle was sent to --on-abort), 128+N interrupted by signal N (130 Ctrl-C)."""
+1 a failure (the vehicle was sent to --on-abort), 128+N interrupted by signal N (130 Ctrl-C).
+
+After every decision the search's state goes into OUT/journal.json (autopilot_bridge.journal):
+`uavsearch run --resume OUT` after a crash of this process goes on with the same search, the
+vehicle taken back in the air or taken off again (autopilot_bridge.resume), and its log is the
+whole search."""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from autopilot_bridge.abort import AbortAction
@@ -46,15 +52,20 @@ def register(app: typer.Typer) -> None:
             None, "--field-edge/--no-field-edge",
             help="The field's edge is visible (a track round the grass): a border not in view is evidence of "
                  "where the vehicle is (default: the field file's, else no)."),
-        altitude: float = typer.Option(3.5, "--altitude", help="Search altitude above home (m), 1 to 30."),
+        altitude: float | None = typer.Option(None, "--altitude", help="Search altitude above home (m), 1 to 30 "
+                                              "(default: 3.5)."),
         max_moves: int | None = typer.Option(None, "--max-moves", help="Stop after this many moves (default: t_e)."),
         move_timeout: float = typer.Option(20.0, "--move-timeout", help="Seconds one move may take before aborting."),
         on_abort: AbortAction = typer.Option(
             AbortAction.rtl, "--on-abort", help="What the vehicle does when the search fails or is interrupted."),
         abort_timeout: float = typer.Option(120.0, "--abort-timeout", help="Seconds to wait for the disarm after an abort."),
         hold_time: float = typer.Option(60.0, "--hold-time", help="With --on-abort hold: seconds left to the operator before landing."),
-        seed: int = typer.Option(0, "--seed"),
+        seed: int | None = typer.Option(None, "--seed", help="The search's seed (default: 0)."),
         out: Path = typer.Option(Path("out/run"), "--out"),
+        resume: Path | None = typer.Option(
+            None, "--resume", help="Go on with the search whose journal is in this directory (a run's --out) after "
+                                   "the companion stopped: same field, policy and seed; the vehicle is taken back "
+                                   "in the air, or taken off again if it has landed."),
         tlog: bool = typer.Option(True, "--tlog/--no-tlog", help="Log the link to OUT/companion.tlog."),
         autopilot: str = typer.Option(
             "auto", "--autopilot", help="The autopilot's family: px4, ardupilot, or auto (from its HEARTBEAT)."),
@@ -74,7 +85,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
         from autopilot_bridge.dialects import NAMES as AUTOPILOTS
+        from autopilot_bridge.journal import ENDED, JOURNAL, Journal, JournalError, load, read
         from autopilot_bridge.link import VehicleLink
+        from autopilot_bridge.resume import rejoin
         from autopilot_bridge.service import PolicyService, SearchSpec, save_log
         from missions.fieldfile import FieldFileError, FieldSpec, read_field
         from missions.flight_policy import PolicyUnfit, flight_policy
@@ -86,12 +99,67 @@ def register(app: typer.Typer) -> None:
         from sim.gridworld.geodesy import HomePosition
 
         _check(autopilot.lower() in AUTOPILOTS, autopilot, "--autopilot", f"expected one of {', '.join(AUTOPILOTS)}")
+        doc = None
+        if resume is not None:
+            try:
+                doc = read(resume)
+            except JournalError as e:
+                raise typer.BadParameter(str(e), param_hint="--resume") from e
+            if doc.status == ENDED:
+                raise typer.BadParameter(f"the search journaled in {doc.path} ran to its end ({doc.meta['moves']} "
+                                         "moves): nothing to resume", param_hint="--resume")
+            jc = doc.config
+            for given, key, hint in ((width, "width", "--width"), (height, "height", "--height"),
+                                     (targets, "n_targets", "--targets"),
+                                     (None if distribution is None else distribution.value, "distribution", "--distribution"),
+                                     (None if motion is None else motion.value, "motion", "--motion")):
+                _check(given is None or given == jc["grid"][key], given, hint,
+                       f"the journaled search ({doc.path}) flies {key} {jc['grid'][key]!r}")
+            for given, key, hint in ((policy, "policy", "--policy"), (altitude, "altitude", "--altitude"),
+                                     (max_moves, "max_moves", "--max-moves"), (field_edge, "field_edge", "--field-edge"),
+                                     (None if checkpoint is None else str(checkpoint), "checkpoint", "--checkpoint")):
+                _check(given is None or given == jc[key], given, hint,
+                       f"the journaled search ({doc.path}) has {key} {jc[key]!r}")
+            _check(seed is None or seed == doc.seed, seed, "--seed", f"the journaled search ({doc.path}) has seed {doc.seed}")
+            _check(out == Path("out/run") or out.resolve() == resume.resolve(), str(out), "--out",
+                   "a resumed search writes into its --resume directory")
+            out = resume
+            policy, altitude, max_moves, field_edge, seed = jc["policy"], jc["altitude"], jc["max_moves"], jc["field_edge"], doc.seed
+            checkpoint = None if jc["checkpoint"] is None else Path(jc["checkpoint"])
+            width, height, targets = jc["grid"]["width"], jc["grid"]["height"], jc["grid"]["n_targets"]
+            distribution, motion = Dist(jc["grid"]["distribution"]), Motion(jc["grid"]["motion"])
+            o = jc["origin"]
+            for given, value, hint in ((origin_lat, o[0], "--origin-lat"), (origin_lon, o[1], "--origin-lon"),
+                                       (origin_alt, o[2], "--origin-alt")):
+                _check(given is None or given == value, given, hint, f"the journaled search ({doc.path}) has {value!r}")
+            origin_lat, origin_lon, origin_alt = o
+            connect = connect or jc["connect"]
+        elif (out / JOURNAL).exists():
+            try:
+                old = read(out)
+            except JournalError:
+                old = None
+            if old is not None and old.status != ENDED:
+                raise typer.BadParameter(
+                    f"{old.path} is the journal of a search that has not ended ({old.meta['moves']} moves flown): go "
+                    f"on with it (uavsearch run --resume {out}), or give another --out", param_hint="--out")
+        altitude = 3.5 if altitude is None else altitude
+        seed = 0 if seed is None else seed
+
         fs: FieldSpec | None = None
         if field is not None:
             try:
                 fs = read_field(field)
             except FieldFileError as e:
                 raise typer.BadParameter(str(e), param_hint="--field") from e
+        if fs is not None and doc is not None:
+            jg, jo = doc.config["grid"], doc.config["origin"]
+            here = (fs.grid.width, fs.grid.height, fs.grid.n_targets, fs.origin.lat_deg, fs.origin.lon_deg)
+            there = (jg["width"], jg["height"], jg["n_targets"], jo[0], jo[1])
+            _check(here == there, str(field), "--field",
+                   f"this field ({here[0]} x {here[1]}, {here[2]} targets, origin {here[3]}, {here[4]}) is not the "
+                   f"journaled search's ({doc.path}: {there[0]} x {there[1]}, {there[2]} targets, origin "
+                   f"{there[3]}, {there[4]})")
         if fs is None and (origin_lat is None or origin_lon is None):
             raise typer.BadParameter("give --field FILE (written by `uavsearch sitl`) or both --origin-lat and "
                                      "--origin-lon (the centre of cell (0, 0))", param_hint="--field")
@@ -122,6 +190,8 @@ def register(app: typer.Typer) -> None:
             origin = HomePosition(pick(origin_lat, o0.lat_deg), pick(origin_lon, o0.lon_deg), pick(origin_alt, o0.alt_m))
         except (ConfigError, ValueError) as e:
             raise typer.BadParameter(str(e)) from e
+        if doc is not None:  # the journaled search's field exactly (its target period too)
+            grid = GridConfig.from_dict(doc.config["grid"])
         if fs is not None and (grid.width, grid.height, grid.n_targets) != (g0.width, g0.height, g0.n_targets):
             typer.echo(f"warning: flying a {grid.width} x {grid.height} field with {grid.n_targets} targets; "
                        f"{field} says {g0.width} x {g0.height} with {g0.n_targets}", err=True)
@@ -163,6 +233,8 @@ def register(app: typer.Typer) -> None:
                   "checkpoint": None if checkpoint is None else str(checkpoint), "altitude": altitude,
                   "max_moves": max_moves, "on_abort": on_abort.value, "field_edge": edge, "camera": camera,
                   "autopilot": autopilot.lower(), "set_failsafe": set_failsafe}
+        if doc is not None and field is None:
+            config["field"] = doc.config.get("field")
         from missions.keys import KeyFileError, read_signing_key
 
         try:
@@ -183,7 +255,9 @@ def register(app: typer.Typer) -> None:
             except VideoSourceError as e:
                 raise typer.BadParameter(str(e), param_hint="--camera") from e
         config["camera"] = camera
-        link = VehicleLink(address, tlog=out / "companion.tlog" if tlog else None,
+        resumes = [] if doc is None else doc.resumes
+        tlog_name = "companion.tlog" if doc is None else f"companion-resumed-{len(resumes) + 1}.tlog"
+        link = VehicleLink(address, tlog=out / tlog_name if tlog else None,
                            tlog_meta=stamp(config, seed, kind="companion tlog"), signing_key=key,
                            dialect=autopilot.lower())
         typer.echo(f"policy {pol.name} on a {grid.width} x {grid.height} field, {grid.n_targets} targets "
@@ -209,13 +283,34 @@ def register(app: typer.Typer) -> None:
                                         on_progress=progress, frames=frames)
                 if hasattr(frames, "clock"):  # a stream's unstamped frames: on the vehicle's clock
                     frames.clock = lambda: service.intake.sim_time_s
+                go_on = None
+                if doc is not None:
+                    try:
+                        loop = load(out, service)
+                    except JournalError as e:
+                        raise typer.BadParameter(str(e), param_hint="--resume") from e
+                    typer.echo(f"resuming the search journaled in {doc.path}: {loop.move} moves flown, "
+                               f"{len(service.log.believed_found)}/{grid.n_targets} found, next from cell {loop.cell}")
+
+                    def go_on() -> tuple[int, np.ndarray, float]:
+                        r = rejoin(service, doc, loop)
+                        journal.resumes.append(r.to_dict())
+                        near = "" if r.off_setpoint_m is None else f", {r.off_setpoint_m:.1f} m from its last setpoint"
+                        typer.echo(f"vehicle {r.how} (found {'armed' if r.armed_found else 'disarmed'} in "
+                                   f"{r.mode_found or '?'}{near}); next decision at {r.t_k:.1f} s, "
+                                   f"{r.gap_s:.1f} s (simulated) after the journal")
+                        return loop.move, np.array(loop.cell), r.t_k
+                journal = Journal(out, service, config, resumes)
+                service.journal = journal
                 end = guarded_search(service, link, on_abort, abort_timeout, hold_time, echo=typer.echo,
-                                     move_timeout_s=move_timeout)
+                                     move_timeout_s=move_timeout, rejoin=go_on)
+                journal.end(end.to_dict(), ended=end.exit_code in (EXIT_OK, EXIT_SHORT))
         finally:
             frames.close()
             link.close()
         log = end.log
-        save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed))
+        save_log(log, out / "search_log.json", outcome=end.to_dict(), provenance=stamp(config, seed),
+                 resumes=journal.resumes, journal={"writes": journal.writes, "write_s": round(journal.write_s, 3)})
         moves = max(len(log.cells) - 1, 0)
         if log.cells:
             from missions.run_plot import plot_decisions
