@@ -69,7 +69,8 @@ class FaultProxy:
     def __init__(self, vehicle_port: int, client_port: int, up: LinkFaults | None = None,
                  down: LinkFaults | None = None, seed: int = 0, host: str = "127.0.0.1",
                  vehicle_side_port: int = 0) -> None:
-        """`vehicle_port`: where the vehicle listens; `client_port`: where the client listens.
+        """`vehicle_port`: where the vehicle listens (0: wherever its first datagram comes from,
+        as for ArduPilot's udpclient serial port); `client_port`: where the client listens.
         `down` (vehicle -> client) defaults to `up` (client -> vehicle). Give the vehicle
         `self.vehicle_side_port` as its remote port."""
         self.host, self.vehicle_addr, self.client_addr = host, (host, vehicle_port), (host, client_port)
@@ -125,15 +126,21 @@ class FaultProxy:
             now = time.monotonic()
             for s in ready:
                 try:
-                    data, _ = s.recvfrom(65535)
+                    data, addr = s.recvfrom(65535)
                 except OSError:
                     continue
                 if s is self.vside:  # from the vehicle, on to the client
+                    if self.vehicle_addr[1] == 0:
+                        self.vehicle_addr = addr
                     self.down.counts.forwarded += 1
                     self._schedule(self.down, data, self.cside, self.client_addr, now)
                 else:
                     self.up.counts.forwarded += 1
                     self._schedule(self.up, data, self.vside, self.vehicle_addr, now)
+
+    def cut(self) -> None:
+        """From now on nothing gets through, either way: a radio out of range."""
+        self.up.faults = self.down.faults = LinkFaults(loss=1.0)
 
     def start(self) -> FaultProxy:
         self._thread = threading.Thread(target=self._run, name="fault-proxy", daemon=True)
