@@ -77,11 +77,14 @@ def bring_down(link: VehicleLink, action: AbortAction | str, timeout_s: float = 
         notes.append(f"already in {tel.mode}: kept it")
         echo(f"abort: the vehicle is already in {tel.mode}; waiting for disarm (up to {timeout_s:.0f} s)")
     else:
+        # a link already silent (cut, out of range) gets a few tries, not the full ~22 s of
+        # resends: the vehicle's own failsafe is acting, and the operator hears so sooner
+        tries = 3 if time.monotonic() - tel.heartbeat_time > link_lost_s else 10
         ok = {
-            AbortAction.rtl: lambda: _try(link.return_to_launch, "RTL", commanded, notes),
-            AbortAction.land: lambda: _try(link.land, "LAND", commanded, notes),
-            AbortAction.hold: lambda: _try(lambda: link.set_mode(link.require_dialect().hold_mode), "HOLD", commanded,
-                                           notes),
+            AbortAction.rtl: lambda: _try(lambda: link.return_to_launch(tries), "RTL", commanded, notes),
+            AbortAction.land: lambda: _try(lambda: link.land(tries), "LAND", commanded, notes),
+            AbortAction.hold: lambda: _try(lambda: link.set_mode(link.require_dialect().hold_mode, tries), "HOLD",
+                                           commanded, notes),
         }[action]()
         lost = time.monotonic() - tel.heartbeat_time > link_lost_s
         if not ok and action is not AbortAction.land and not lost:  # refused, or unanswered on a live link

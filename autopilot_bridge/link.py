@@ -444,9 +444,9 @@ class VehicleLink:
             time.sleep(0.02)
         return "; ".join(dict.fromkeys(texts()))
 
-    def set_mode(self, name: str) -> None:
+    def set_mode(self, name: str, retries: int = 10) -> None:
         """A mode by its family's name (PX4 'AUTO.LOITER', ArduPilot 'GUIDED')."""
-        self.command(mavlink.MAV_CMD_DO_SET_MODE, *self.require_dialect().set_mode_params(name))
+        self.command(mavlink.MAV_CMD_DO_SET_MODE, *self.require_dialect().set_mode_params(name), retries=retries)
 
     def takeoff(self, altitude_m: float) -> None:
         """MAV_CMD_NAV_TAKEOFF to altitude_m as the dialect counts it (PX4 AMSL, ArduPilot
@@ -502,11 +502,11 @@ class VehicleLink:
                 refused.append(f"SET_MESSAGE_INTERVAL {mavlink.mavlink_map[s.msg_id].msgname}: {e}")
         return refused
 
-    def land(self) -> None:
-        self.command(mavlink.MAV_CMD_NAV_LAND)
+    def land(self, retries: int = 10) -> None:
+        self.command(mavlink.MAV_CMD_NAV_LAND, retries=retries)
 
-    def return_to_launch(self) -> None:
-        self.command(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+    def return_to_launch(self, retries: int = 10) -> None:
+        self.command(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, retries=retries)
 
     def set_position_ned(self, n: float, e: float, d: float, yaw: float = float("nan")) -> None:
         """One SET_POSITION_TARGET_LOCAL_NED (position only); stream it for OFFBOARD."""
