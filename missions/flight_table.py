@@ -37,6 +37,7 @@ class FlightJob:
     out: str | None = None  # keep each flight's files here (None: a temporary folder)
     #: who flies: our SITL vehicle, or a real ardupilot / px4 binary on our world (sim.bridges)
     autopilot: str = "ours"
+    camera: str = "mavlink"  # mavlink | video (the SITL's RTP/H.264 stream, decoded by PyAV)
 
     def __post_init__(self) -> None:
         if self.speedup < 0:
@@ -55,7 +56,7 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
         out = Path(job.out) / f"seed{job.seed}" if job.out else Path(tmp)
         r = fly_search(out, seed=job.seed, speedup=job.speedup, max_moves=job.max_moves, policy=job.policy,
                        gps_sigma_m=job.gps_sigma_m, visit_map=job.visit_map, plot=job.out is not None,
-                       free_ports=True, autopilot=job.autopilot)
+                       free_ports=True, autopilot=job.autopilot, camera=job.camera)
     keep = ("policy", "moves", "grid_moves", "flight_grid_ratio", "optimal_moves", "believed_found", "truly_found",
             "targets", "schedule_slips", "late_frames", "late_inputs", "lockstep_timeouts", "frames_missing", "nees_mean",
             "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells")
@@ -144,21 +145,24 @@ def over_interval(k: int, n: int) -> list[float] | None:
 
 
 def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float = 10.0,
-                   policy: str | None = None, max_moves: int | None = None, autopilot: str = "ours") -> dict[str, Any]:
+                   policy: str | None = None, max_moves: int | None = None, autopilot: str = "ours",
+                   camera: str = "mavlink") -> dict[str, Any]:
     """Fly every seed, compare with the grid world, write out/flight_vs_grid.{md,json}
     (flight_vs_grid_<autopilot>.* when a real autopilot flies)."""
     from missions.flight_policy import FLIGHT_POLICY
 
     t0 = time.monotonic()
-    rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot) for s in seeds],
-                    workers)
+    rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera)
+                     for s in seeds], workers)
     summary = summarise(rows)
     doc = stamp({"seeds": seeds, "speedup": speedup, "workers": workers, "policy": policy or FLIGHT_POLICY,
                  "max_moves": max_moves, "visit_map": "probabilistic", "companion_lockstep": autopilot == "ours",
-                 "autopilot": autopilot},
+                 "autopilot": autopilot, "camera": camera},
                  seeds[0] if seeds else None, summary=summary, rows=rows, wall_s=time.monotonic() - t0,
                  cpus=os.cpu_count(), command="python -m missions flight-table")
-    write_result(out, "flight_vs_grid" if autopilot == "ours" else f"flight_vs_grid_{autopilot}", doc, render_md(doc))
+    stem = "flight_vs_grid" + ("" if autopilot == "ours" else f"_{autopilot}") + ("" if camera == "mavlink" else
+                                                                                   f"_{camera}")
+    write_result(out, stem, doc, render_md(doc))
     return doc
 
 
@@ -175,7 +179,8 @@ def render_md(doc: dict[str, Any]) -> str:
     s, rows = doc["summary"], doc["rows"]
     lines = [
         "# Flights vs the grid world" + ("" if doc["config"].get("autopilot", "ours") == "ours" else
-                                         f" (the real {doc['config']['autopilot']} flying our world)"),
+                                         f" (the real {doc['config']['autopilot']} flying our world)")
+        + ("" if doc["config"].get("camera", "mavlink") == "mavlink" else " (frames from the RTP/H.264 video stream)"),
         "",
         f"{s['flights']} flights (seeds {doc['config']['seeds'][0]}..{doc['config']['seeds'][-1]}), policy "
         f"`{doc['config']['policy']}`, probabilistic visitation map, speed-up {doc['config']['speedup']}, "

@@ -28,13 +28,18 @@ def register(app: typer.Typer) -> None:
         autopilot: str = typer.Option(
             "ours", "--autopilot", help="Who flies: ours (our SITL vehicle), or the real ardupilot / px4 SITL binary "
                                         "($ARDUPILOT_SITL / $PX4_SITL) on our world's physics."),
+        camera: str = typer.Option(
+            "mavlink", "--camera", help="Frames from the MAVLink camera component (mavlink) or the SITL's RTP/H.264 "
+                                        "stream decoded by PyAV (video; our vehicle only)."),
     ) -> None:
         """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
         from missions.flight_table import flight_vs_grid
 
         if autopilot not in ("ours", "ardupilot", "px4"):
             raise typer.BadParameter(f"{autopilot!r}: expected ours, ardupilot or px4", param_hint="--autopilot")
-        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot)
+        if camera not in ("mavlink", "video") or (camera == "video" and autopilot != "ours"):
+            raise typer.BadParameter(f"{camera!r}: mavlink, or video with --autopilot ours", param_hint="--camera")
+        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot, camera)
         s = doc["summary"]
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")
