@@ -195,14 +195,20 @@ class Pilot:
         here = self.intake.local_at(self.t_offboard) if timed else None
         if here is None:
             here = np.array([link.telemetry.local["n"], link.telemetry.local["e"]])
+        self.start_stream(here)
+        if timed:
+            self._held_at(t_leg, timeout)  # the decision loop's first leg starts here
+
+    def start_stream(self, here: np.ndarray) -> None:
+        """Hold the vehicle at `here` (local north, east) at the search height: the setpoint
+        sent at once, then streamed by its thread under the decision loop's deadline, and the
+        dialect's guided mode taken (after take-off, and when a resumed search rejoins)."""
         with self._setpoint_lock:
             self._setpoint = np.array([here[0], here[1], -self.spec.altitude_m])
             self.link.set_position_ned(*self._setpoint)
         self.expect(DECISION_DEADLINE_S)
         threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()
         self._enter_offboard()
-        if timed:
-            self._held_at(t_leg, timeout)  # the decision loop's first leg starts here
 
     def _ask_ahead(self, times: tuple[float, ...]) -> bool:
         """Ask for captures at these simulated instants, long before the clock gets there.

@@ -30,7 +30,6 @@ autopilot's local frame: the found targets' readings, kept in it, are moved with
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
@@ -38,7 +37,6 @@ import numpy as np
 
 from .journal import JournalDoc, JournalError, LoopState
 from .link import LinkError
-from .pilot import DECISION_DEADLINE_S
 from .preflight import ensure_failsafe
 
 if TYPE_CHECKING:
@@ -153,13 +151,6 @@ def _take_off_again(service: PolicyService, timeout: float) -> None:
 
 
 def _hand_over(service: PolicyService, here: np.ndarray) -> None:
-    """Start the setpoint stream where the vehicle is, at the search height, and take OFFBOARD:
-    the tail of `Pilot.take_off`, from wherever the vehicle is. (Pilot's stream and its
-    OFFBOARD entry are its own; they are driven here as take_off drives them.)"""
-    pilot = service.pilot
-    with pilot._setpoint_lock:
-        pilot._setpoint = np.array([here[0], here[1], -service.spec.altitude_m])
-        service.link.set_position_ned(*pilot._setpoint)
-    pilot.expect(DECISION_DEADLINE_S)
-    threading.Thread(target=pilot._stream_setpoints, daemon=True, name="setpoints").start()
-    pilot._enter_offboard()
+    """Start the setpoint stream where the vehicle is, at the search height, and take the
+    dialect's guided mode: the tail of `Pilot.take_off`, from wherever the vehicle is."""
+    service.pilot.start_stream(here)

@@ -26,7 +26,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from ..link import CommandRejected, LinkError, VehicleLink
 from .png import FrameAssembler
-from .source import Stamped
+from .source import Stamped, ask_until_whole
 
 log = logging.getLogger(__name__)
 DISCOVER_TIMEOUT_S = 5.0  # wall seconds a camera has to heartbeat (1 Hz) before it is missing
@@ -245,12 +245,7 @@ class MavlinkCamera:
     def capture(self, at_s: float, timeout: float = 1.5, tries: int = 8) -> Stamped:
         """The frame captured at simulated time at_s, asking again (the camera resends the
         same stamped picture) until it is whole or the tries run out; (None, None) then."""
-        for _ in range(tries):
-            self.ask(at_s)
-            frame, t = self.wait(at_s, timeout)
-            if frame is not None:
-                return frame, t
-        return None, None
+        return ask_until_whole(self, at_s, timeout, tries)
 
     def request(self, timeout: float = 1.5, tries: int = 8) -> np.ndarray | None:
         """A fresh frame, or None when `tries` requests of `timeout` seconds each brought none."""

@@ -39,3 +39,14 @@ class FrameSource(Protocol):
 
     def close(self) -> None:
         """Stop listening; close what the source opened itself (its own connection)."""
+
+
+def ask_until_whole(source: FrameSource, at_s: float, timeout: float, tries: int) -> Stamped:
+    """Ask for the frame of at_s and wait `timeout` for it, up to `tries` times (a MAVLink
+    camera resends the same stamped picture when asked again); (None, None) when none came."""
+    for _ in range(tries):
+        source.ask(at_s)
+        frame, t = source.wait(at_s, timeout)
+        if frame is not None:
+            return frame, t
+    return None, None

@@ -42,6 +42,8 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from .source import ask_until_whole
+
 log = logging.getLogger(__name__)
 
 #: the SITL's time-stamp SEI (a wire format shared with sim/mavlink/video.py, not an import:
@@ -343,12 +345,7 @@ class VideoSource:
         self.requests += 1
         if self.asker is None:
             return self.wait(at_s, timeout * tries)
-        for _ in range(tries):  # asked as the MAVLink requester asks, so a lockstep SITL holds alike
-            self.ask(at_s)
-            frame, t = self.wait(at_s, timeout)
-            if frame is not None:
-                return frame, t
-        return None, None
+        return ask_until_whole(self, at_s, timeout, tries)  # as the MAVLink camera asks: a lockstep SITL holds alike
 
     def request(self, timeout: float = 1.5, tries: int = 8) -> np.ndarray | None:
         """A frame decoded after this call, or None within timeout * tries seconds."""
