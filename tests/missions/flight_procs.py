@@ -93,6 +93,16 @@ class Lines:
         return "\n".join(self.lines)
 
 
+def until(pred, timeout: float, poll_s: float = 0.1) -> bool:
+    """Poll pred until it holds or timeout seconds pass; its last answer."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(poll_s)
+    return pred()
+
+
 def uavsearch(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "missions", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, bufsize=1)

@@ -13,12 +13,11 @@ import os
 import signal
 import socket
 import subprocess
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from flight_procs import GroundStation, Lines, uavsearch
+from flight_procs import GroundStation, Lines, uavsearch, until
 
 from sim.mavlink.faultproxy import FaultProxy
 
@@ -60,15 +59,6 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.wait(timeout=10)
 
 
-def _until(pred, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.1)
-    return pred()
-
-
 @pytest.mark.parametrize("how", EXITS)
 @pytest.mark.parametrize("backend", list(BACKENDS))
 def test_a_search_stopped_mid_flight_ends_landed_and_disarmed(tmp_path: Path, backend: str, how: str) -> None:
@@ -88,7 +78,7 @@ def test_a_search_stopped_mid_flight_ends_landed_and_disarmed(tmp_path: Path, ba
     run = None
     try:
         assert sitl_out.wait_for("uavsearch run --field", 60), sitl_out.text
-        assert _until(lambda: bool(gcs.seen.armed), 60), "the ground station hears the vehicle"
+        assert until(lambda: bool(gcs.seen.armed), 60), "the ground station hears the vehicle"
         connect = []
         if how == "cut":  # the companion reaches the autopilot through a radio that will fail
             client = _free_port()
@@ -112,7 +102,7 @@ def test_a_search_stopped_mid_flight_ends_landed_and_disarmed(tmp_path: Path, ba
             proxy.cut()
             run.wait(timeout=240)  # the companion notices, commands what it cannot deliver, says so
             assert run.returncode == 1 and "its own failsafe" in out.text, out.text
-        assert _until(lambda: not gcs.armed_now, 240), f"still armed: {gcs.seen}\n{out.text}"
+        assert until(lambda: not gcs.armed_now, 240), f"still armed: {gcs.seen}\n{out.text}"
     finally:
         if run is not None:
             _stop(run)
