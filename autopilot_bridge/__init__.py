@@ -1,5 +1,9 @@
 """The companion computer: MAVLink link, GPS estimator, probabilistic map, camera detector,
-and the policy service that flies the search."""
+and the policy service that flies the search.
+
+Rooms by concern: `dialects/` (what each autopilot family needs: PX4, ArduPilot), `camera/`
+(frame sources: a MAVLink camera component, a video stream), `preflight.py` (the
+companion-loss failsafe check), `journal.py` / `resume.py` (a restarted companion goes on)."""
 
 from .detector import DetectorConfig, cell_fractions, frame_to_view
 from .estimator import EstimatorConfig, GpsEstimator, PositionPosterior

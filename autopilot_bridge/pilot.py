@@ -126,10 +126,12 @@ class Pilot:
 
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
-        """Wait for GPS and home, fix the schedule's origin t_ref, register the launch point,
-        arm half a second after the later of t_ref and the launch window's end (t_arm), take off
-        half a second later, enter OFFBOARD at the hover CLIMB_S after that (`t_offboard`), and
-        return with the vehicle held LEG_AFTER_S later, for the decision loop's first leg.
+        """Ask for the dialect's streams, check the companion-loss failsafe (preflight.py), wait
+        until the autopilot is ready (its dialect says what that takes), fix the schedule's
+        origin t_ref, register the launch point, arm half a second after the later of t_ref and
+        the launch window's end (t_arm; ArduCopter in GUIDED first), take off half a second
+        later, enter the dialect's guided mode at the hover CLIMB_S after that (`t_offboard`),
+        and return with the vehicle held LEG_AFTER_S later, for the decision loop's first leg.
 
         Each command is sent while a companion-lockstep vehicle holds its clock at a capture
         asked for ahead (it holds at a timed capture until the companion's next command), so it
