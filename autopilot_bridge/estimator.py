@@ -24,6 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
 
+#: simulated seconds within which two stamps are one instant (see _predict_to)
+TIME_EPS_S = 1e-6
+
 #: an uninformative prior variance (m^2) on position before the first fix
 PRIOR_VAR = 1e4
 #: Gaussian-sum housekeeping: components weighing under PRUNE_W of the likeliest are dropped;
@@ -177,7 +180,10 @@ class GpsEstimator:
     def _predict_to(self, t: float) -> None:
         assert self._t is not None
         dt = t - self._t
-        if dt < 0:
+        # stamps come rounded through microseconds (GPS time_usec, the camera's PNG stamp) while
+        # the schedule sums periods in floats: within TIME_EPS_S they are the same instant
+        # (PX4 on our world, 4 flights in 20: 118.19999999999999 after 118.2)
+        if dt < -TIME_EPS_S:
             raise ValueError(f"measurement time went backwards ({t} < {self._t})")
         if dt > 0:
             self._x, self._p = self._predicted(t)
