@@ -30,13 +30,14 @@ autopilot's local frame: the found targets' readings, kept in it, are moved with
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .journal import JournalDoc, JournalError, LoopState
-from .link import LinkError
+from .link import CommandRejected, LinkError
 from .preflight import ensure_failsafe
 
 if TYPE_CHECKING:
@@ -144,10 +145,27 @@ def _take_off_again(service: PolicyService, timeout: float) -> None:
     dialect = link.require_dialect()
     if dialect.guided_before_arming:  # ArduCopter arms and takes off in GUIDED
         link.set_mode(dialect.guided_mode)
-    link.arm(retry_s=10.0)
+    _arm_after_failsafe(link, dialect.heartbeat_feeds_failsafe)
     link.takeoff(dialect.takeoff_altitude(tel.home["alt"], spec.altitude_m))
     link.wait_for(lambda: tel.local.get("d", 0.0) < -(spec.altitude_m - 0.4), timeout,
                   f"take-off to {spec.altitude_m} m")
+
+
+def _arm_after_failsafe(link, by_heartbeat: bool, wait_s: float = 15.0) -> None:
+    """Arm a vehicle the dead companion's failsafe brought down: ArduCopter refuses ("Arm: GCS
+    failsafe on", measured on the real one) until its GCS failsafe has heard the watched
+    system again, which this companion's heartbeats clear within a second or two."""
+    end = time.monotonic() + wait_s
+    while True:
+        if by_heartbeat:
+            link.heartbeat_now()
+        try:
+            link.arm(retry_s=10.0)
+            return
+        except CommandRejected as e:
+            if "failsafe" not in e.reason.lower() or time.monotonic() > end:
+                raise
+            time.sleep(0.5)
 
 
 def _hand_over(service: PolicyService, here: np.ndarray) -> None:

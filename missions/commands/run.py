@@ -134,6 +134,10 @@ def register(app: typer.Typer) -> None:
                 _check(given is None or given == value, given, hint, f"the journaled search ({doc.path}) has {value!r}")
             origin_lat, origin_lon, origin_alt = o
             connect = connect or jc["connect"]
+            # the journaled search's field file (its camera, launch pad, dialect) and camera
+            if field is None and jc.get("field") and Path(jc["field"]).is_file():
+                field = Path(jc["field"])
+            camera = camera or jc.get("camera")
         elif (out / JOURNAL).exists():
             try:
                 old = read(out)
