@@ -103,6 +103,17 @@ def until(pred, timeout: float, poll_s: float = 0.1) -> bool:
     return pred()
 
 
+def stop_process(proc: subprocess.Popen, grace_s: float = 20.0) -> None:
+    """SIGTERM, then SIGKILL after grace_s: a process the test started is gone afterwards."""
+    if proc.poll() is None:
+        proc.terminate()
+    try:
+        proc.wait(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=10)
+
+
 def uavsearch(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "missions", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, bufsize=1)
@@ -125,10 +136,5 @@ def sitl_process(tmp: Path, instance: int, *args: str) -> Iterator[tuple[Path, G
         assert gcs.seen.armed == [False], "the ground station hears a disarmed vehicle"
         yield field_file, gcs, out
     finally:
-        if proc.poll() is None:
-            proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop_process(proc, 15)
         gcs.close()

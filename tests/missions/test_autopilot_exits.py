@@ -12,12 +12,11 @@ from __future__ import annotations
 import os
 import signal
 import socket
-import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from flight_procs import GroundStation, Lines, uavsearch, until
+from flight_procs import GroundStation, Lines, stop_process, uavsearch, until
 
 from sim.mavlink.faultproxy import FaultProxy
 
@@ -47,16 +46,6 @@ def _free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.terminate()
-    try:
-        proc.wait(timeout=20)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 @pytest.mark.parametrize("how", EXITS)
@@ -105,8 +94,8 @@ def test_a_search_stopped_mid_flight_ends_landed_and_disarmed(tmp_path: Path, ba
         assert until(lambda: not gcs.armed_now, 240), f"still armed: {gcs.seen}\n{out.text}"
     finally:
         if run is not None:
-            _stop(run)
+            stop_process(run)
         if proxy is not None:
             proxy.stop()
-        _stop(sitl)
+        stop_process(sitl)
         gcs.close()
