@@ -309,7 +309,10 @@ class VehicleLink:
             t.local = {"n": msg.x, "e": msg.y, "d": msg.z, "vn": msg.vx, "ve": msg.vy,
                        "vd": msg.vz, "time_s": msg.time_boot_ms * 1e-3}
         elif kind == "HOME_POSITION":
-            t.home = {"lat": msg.latitude * 1e-7, "lon": msg.longitude * 1e-7, "alt": msg.altitude * 1e-3}
+            # x, y, z: home in the local frame (PX4: where its EKF put home, so origin = home
+            # less these; ArduPilot sends zeros and streams GPS_GLOBAL_ORIGIN instead)
+            t.home = {"lat": msg.latitude * 1e-7, "lon": msg.longitude * 1e-7, "alt": msg.altitude * 1e-3,
+                      "x": msg.x, "y": msg.y, "z": msg.z}
         elif kind == "EXTENDED_SYS_STATE":
             t.landed_state = msg.landed_state
         elif kind == "BATTERY_STATUS":

@@ -87,10 +87,15 @@ class TelemetryIntake:
     def local_origin_in_field(self) -> np.ndarray:
         """The origin of the autopilot's local frame (LOCAL_POSITION_NED, the setpoints) in the
         field frame: GPS_GLOBAL_ORIGIN where the vehicle says it (PX4's and ArduPilot's EKFs
-        set it at their first fix, which need not be home), else home (our SITL's frame)."""
+        set it at their first fix, which need not be home), else home less home's own local
+        position (HOME_POSITION.x/y/z: PX4 sends GPS_GLOBAL_ORIGIN only when the origin changes,
+        so a companion that connects after the EKF's first fix never hears it; taking home for
+        the origin there put every estimate the home's 1-2 m offset away from where PX4 meant it;
+        our SITL's home is its origin, x/y/z 0)."""
         o = self.link.telemetry.local_origin
         if not o:
-            return self.home_in_field()
+            h = self.link.telemetry.home
+            return self.home_in_field() - np.array([h.get("x", 0.0), h.get("y", 0.0), h.get("z", 0.0)])
         return self.origin.geodetic_to_ned(o["lat"], o["lon"], o["alt"])
 
     def field_to_local(self, ne_field: np.ndarray) -> np.ndarray:
