@@ -42,7 +42,8 @@ def lay_grid(outer_ne: np.ndarray, heading_deg: float, cell_m: float) -> tuple[G
     centred on them; returns its frame (cell (0, 0)'s centre as origin) and width, height."""
     c = GridFrame(heading_deg, cell_m).ned_to_cell(outer_ne)
     lo, hi = c.min(axis=0), c.max(axis=0)
-    n = np.maximum(1, np.ceil(hi - lo - 1e-9)).astype(np.int64)  # 1e-9: a span of exactly k cells is k
+    # a span of k cells and a hair (1e-3 cell: 2 mm, the projections' rounding) is k cells
+    n = np.maximum(1, np.ceil(hi - lo - 1e-3)).astype(np.int64)
     start = (lo + hi) / 2 - n / 2 + 0.5  # cell (0, 0)'s centre, in the unshifted frame's cells
     origin = GridFrame(heading_deg, cell_m).cell_to_ned(start)
     return GridFrame(heading_deg, cell_m, (float(origin[0]), float(origin[1]))), int(n[0]), int(n[1])

@@ -178,7 +178,7 @@ def build_field(shapes: Shapes, path: Path | str, cell_m: float = DEFAULT_CELL_M
     heading = default_heading(outer0) if heading_deg is None else normalise_heading(float(heading_deg))
     frame0, w, h = lay_grid(outer0, heading, float(cell_m))
     if w * h > max_cells:
-        k = math.ceil(float(cell_m) * math.sqrt(w * h / max_cells) * 10) / 10
+        k = math.ceil(float(cell_m) * math.sqrt(w * h / max_cells) * 10 - 1e-6) / 10
         raise FieldError(path, f"the grid is {w} x {h} = {w * h} cells of {float(cell_m):g} m, over the limit "
                                f"of {max_cells} cells; use a larger --cell-m (about {k:g}) or split the field")
     la, lo = proj0.to_latlon(np.array([frame0.origin_ne]))[0]

@@ -52,7 +52,7 @@ def render_png(f: PolygonField, title: str = "") -> bytes:
                        Patch(color=COLOURS[FORBIDDEN], label=f"forbidden {n['forbidden']}"),
                        Patch(color=COLOURS[OUTSIDE], label=f"outside {n['outside']}")],
               loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
-    ax.set_title(f"{title}\n{f.width} x {f.height} cells of {f.cell_m:g} m, heading {f.heading_deg:g} deg, "
+    ax.set_title(f"{title}\n{f.width} x {f.height} cells of {f.cell_m:g} m, heading {f.heading_deg:.2f} deg, "
                  f"{100 * n['searchable'] / total:.1f} % searchable", fontsize=9)
     ax.set_xlabel("east (m) from cell (0, 0)")
     ax.set_ylabel("north (m)")
