@@ -12,7 +12,8 @@
   round its edge 0.1 mm differently.
 - searchable (1): the rest. The grid world's mask is `classes == SEARCHABLE`.
 
-Vectorised with shapely 2 (prepared geometries, array predicates): 10 000 cells take ~10 ms."""
+Vectorised with shapely 2 (prepared geometries, array predicates): 9 801 cells with three
+no-fly zones take 24 ms of CPU."""
 
 from __future__ import annotations
 

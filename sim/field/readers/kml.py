@@ -60,6 +60,8 @@ def read_kml(path: Path, kind: str = "kml") -> Shapes:
     except ET.ParseError as e:
         line, col = e.position
         raise FieldError(path, f"is not well-formed XML (line {line}, column {col})") from None
+    except LookupError as e:  # <?xml encoding="..."?> naming no codec
+        raise FieldError(path, f"declares an unknown text encoding ({e})") from None
     if _local(root.tag) != "kml":
         raise FieldError(path, f"is not KML: its root element is <{_local(root.tag)}>, not <kml>")
     areas: list[Area] = []

@@ -76,6 +76,7 @@ BAD = [
          "geometry": json.loads(geojson(ring_lonlat([(-1, -1), (-1, 31), (31, 31), (31, -1)])))}]}),
      "no cell of the 15 x 15 grid is searchable"),
     ("bad.kml", "<kml><Document>", "is not well-formed XML (line 1"),
+    ("enc.kml", '<?xml version="1.0" encoding="UTF-x8"?><kml/>', "declares an unknown text encoding"),
     ("html.kml", "<html><body/></html>", "is not KML: its root element is <html>"),
     ("pin.kml", '<kml xmlns="http://www.opengis.net/kml/2.2"><Placemark><Point><coordinates>-2.5879,51.4545'
                 "</coordinates></Point></Placemark></kml>", "no polygon found (it holds 1 Point(s))"),
