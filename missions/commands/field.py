@@ -19,7 +19,7 @@ def register(app: typer.Typer) -> None:
         cell_m: float = typer.Option(2.0, "--cell-m", help="Cell size in metres (the grid world's cell)."),
         heading: float | None = typer.Option(
             None, "--heading", help="Bearing of the grid's -y axis (the move f), degrees from north "
-                                    "[default: the minimum-area bounding rectangle's].", show_default=False),
+                                    "(default: the minimum-area bounding rectangle's).", show_default=False),
         out: Path = typer.Option(Path("out/field"), "--out", help="Directory for field.json and field.png."),
     ) -> None:
         """Read a polygon field (holes and exclusions as no-fly zones) and grid it."""
@@ -52,6 +52,10 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"warning: {len(away)} no-fly polygon(s) lie outside the field and mark no cell "
                        f"({', '.join(z.name or z.kind for z in away)})", err=True)
         config = {"file": str(file), "cell_m": cell_m, "heading": heading}
-        write_field(out / "field.json", f, config)
-        write_png(out / "field.png", f, title=file.name)
+        try:
+            write_field(out / "field.json", f, config)
+            write_png(out / "field.png", f, title=file.name)
+        except OSError as e:
+            typer.echo(f"error: cannot write to {out}: {e.strerror or e}", err=True)
+            raise typer.Exit(1) from None
         typer.echo(f"wrote {out / 'field.json'} and {out / 'field.png'}")

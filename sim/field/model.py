@@ -123,6 +123,18 @@ class PolygonField:
         p = self.projection
         return p.to_ne(self.outer), [p.to_ne(z.ring) for z in self.no_fly]
 
+    def allowed(self, ne: np.ndarray) -> np.ndarray:
+        """(..., 2) (north, east) metres about `origin` -> bool: inside the outer ring (or on it)
+        and outside every no-fly polygon: where a setpoint may be (the flight checks' test)."""
+        import shapely
+
+        p = np.asarray(ne, dtype=np.float64)
+        outer, no_fly = self.rings_ne()
+        ok = shapely.intersects_xy(shapely.Polygon(outer[:, ::-1]), p[..., 1], p[..., 0])
+        for r in no_fly:
+            ok &= ~shapely.contains_xy(shapely.Polygon(r[:, ::-1]), p[..., 1], p[..., 0])
+        return ok
+
     def to_dict(self) -> dict[str, Any]:
         n = self.counts()
         return {

@@ -113,3 +113,23 @@ def test_field_json_round_trip_and_tampering(tmp_path: Path) -> None:
     (tmp_path / "w.json").write_text(json.dumps(d))
     with pytest.raises(FieldError, match=r"mask must be \d+ rows of 3 characters"):
         load_field(tmp_path / "w.json")
+
+
+@pytest.mark.parametrize("name", ["l_paddock_30deg.geojson", "pond_meadow.kml", "farm_barn.plan"])
+def test_examples_searchable_centres_allowed_and_moves_never_cross_a_no_fly_zone(name: str) -> None:
+    import shapely
+
+    from sim.field import read_field_file
+
+    f = read_field_file(str(Path(__file__).resolve().parents[3] / "examples" / "fields" / name))
+    ys, xs = np.nonzero(f.mask)
+    centres = f.cell_to_ned(np.stack([xs, ys], axis=-1).astype(float))
+    assert f.allowed(centres).all()
+    blocked = shapely.union_all([shapely.Polygon(r[:, ::-1]) for r in f.rings_ne()[1]]) if f.no_fly else None
+    for dx, dy in ((1, 0), (0, 1)):  # every move between two neighbouring searchable cells
+        a = f.mask[: f.height - dy, : f.width - dx] & f.mask[dy:, dx:]
+        y0, x0 = np.nonzero(a)
+        p = f.cell_to_ned(np.stack([x0, y0], -1).astype(float))[..., ::-1]
+        q = f.cell_to_ned(np.stack([x0 + dx, y0 + dy], -1).astype(float))[..., ::-1]
+        if blocked is not None:
+            assert not shapely.intersects(shapely.linestrings(np.stack([p, q], axis=1)), blocked).any()
