@@ -18,6 +18,8 @@ from .frame import GridFrame
 #: headings are rounded to this many decimals of a degree (a rectangle's edge is computed in
 #: floating point: a north-aligned field would otherwise get a heading of 1e-14)
 HEADING_DECIMALS = 6
+#: a polygon may overhang its grid by up to half this share of a cell on each side (5 cm at 2 m)
+SPAN_SLACK = 0.05
 
 
 def default_heading(outer_ne: np.ndarray) -> float:
@@ -42,8 +44,10 @@ def lay_grid(outer_ne: np.ndarray, heading_deg: float, cell_m: float) -> tuple[G
     centred on them; returns its frame (cell (0, 0)'s centre as origin) and width, height."""
     c = GridFrame(heading_deg, cell_m).ned_to_cell(outer_ne)
     lo, hi = c.min(axis=0), c.max(axis=0)
-    # a span of k cells and a hair (1e-3 cell: 2 mm, the projections' rounding) is k cells
-    n = np.maximum(1, np.ceil(hi - lo - 1e-3)).astype(np.int64)
+    # a span of k cells and a little (SPAN_SLACK) is k cells: vertices are drawn to a cm or so,
+    # and a heading off by 0.003 deg turns a 48 m side 3 mm wider; an extra row of cells whose
+    # centres all sit on the field's edge (half in, half out by rounding) would help nobody
+    n = np.maximum(1, np.ceil(hi - lo - SPAN_SLACK)).astype(np.int64)
     start = (lo + hi) / 2 - n / 2 + 0.5  # cell (0, 0)'s centre, in the unshifted frame's cells
     origin = GridFrame(heading_deg, cell_m).cell_to_ned(start)
     return GridFrame(heading_deg, cell_m, (float(origin[0]), float(origin[1]))), int(n[0]), int(n[1])
