@@ -122,6 +122,9 @@ def test_examples_searchable_centres_allowed_and_moves_never_cross_a_no_fly_zone
     from sim.field import read_field_file
 
     f = read_field_file(str(Path(__file__).resolve().parents[3] / "examples" / "fields" / name))
+    committed = load_field(Path(__file__).resolve().parents[3] / "examples" / "fields" / "out" / name.split(".")[0]
+                           / "field.json")  # what the command wrote is what it makes today
+    assert np.array_equal(committed.classes, f.classes) and committed.origin == f.origin
     if name.startswith("l_paddock"):  # drawn to 1 cm: its sides still fall on cell lines
         assert (f.width, f.height, f.searchable_cells) == (25, 24, 1960 // 4)
     ys, xs = np.nonzero(f.mask)
