@@ -7,6 +7,8 @@ world takes) -> write_field / load_field (field.json). In sim/ because the SITL 
 field; imports nothing from the other packages (numpy, shapely, sim.gridworld, provenance).
 See docs/fields.md."""
 
+from sim.gridworld.coords import DEFAULT_CELL_M
+
 from .errors import FieldError
 from .frame import GridFrame
 from .grid import default_heading, lay_grid
@@ -17,7 +19,7 @@ from .readers import FORMATS, read_shapes
 from .shapes import Area, Ring, Shapes
 
 
-def read_field_file(path: str, cell_m: float = 2.0, heading_deg: float | None = None) -> PolygonField:
+def read_field_file(path: str, cell_m: float = DEFAULT_CELL_M, heading_deg: float | None = None) -> PolygonField:
     """A polygon file (.plan, .kml, .kmz, .geojson) read and gridded in one call."""
     return build_field(read_shapes(path), path, cell_m, heading_deg)
 
