@@ -130,7 +130,7 @@ CAL_HEIGHT_M, CAL_WIDTH_PX = 3.5 - CAMERA_BELOW_M, 50
 #: K_PX_M / (H - TOP_M) was fitted at 2.5-4.5 m; flown higher it read whole blobs' offsets short
 #: by a scale that grows with the height (rendered, 8.1 m: -0.26 m at 6-8 m out, -3.7 %): the
 #: pixels per metre are divided by 1 + this * (H - CAL_HEIGHT_M). Fitted on 6775 whole blobs at
-#: heights round the three levels' (tuning seeds 1 and 2, never the measurement's 27): 8.1 m,
+#: heights round the three levels' (tuning seeds 1 and 2; the table is measured on 2026): 8.1 m,
 #: 6-8 m out, bias -0.26 -> -0.01 m, rms 0.46 -> 0.40 m; 5.8 m, 2-4 m out, -0.06 -> -0.01 m.
 #: Exactly 1 at CAL_HEIGHT_M (today's flights to the bit).
 HEIGHT_SCALE_PER_M = 0.0081
