@@ -15,6 +15,7 @@ offset from the nadir is also GPS-free: it tells where the camera truly is (regi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,6 +95,22 @@ EDGE_PUSH_M = 0.35
 #: away 2.0 m at least (it was read as a neighbour: the planner stepped back and forth
 #: between two cells chasing it, the demo's moves 29-40)
 EDGE_BEYOND_M = 1.95
+
+
+#: and this much further per ring of a wider window (radius r, flown at 3.5 m (2r + 1) / 3): the
+#: window's border is a cell further out per ring and the frame's edge, where blobs are cut,
+#: further still. Rendered (tuning seeds 1 and 2, 6000 frames each): the cut blobs of targets in
+#: the 5 x 5 window reach in to 4.4 m (95 %), those beyond it from 4.2 m; a cell (2 m) per ring
+#: missed 33-34 of ~2000 targets at level 2, 2.5 m 3-4, with as many false alarms (13-16);
+#: 3 m added 5 false alarms.
+EDGE_BEYOND_STEP_M = 2.5
+
+
+def edge_beyond_m(radius: int) -> float:
+    """EDGE_BEYOND_M for a window of this radius (cells): EDGE_BEYOND_STEP_M further per ring."""
+    return EDGE_BEYOND_M + EDGE_BEYOND_STEP_M * (radius - 1)
+
+
 #: smaller blobs are specks (a leg at the frame's edge, rendering noise): ignored
 MIN_BLOB_PX = 4
 #: a blob inside the frame (not cut by its edge) smaller than this is no target: a whole cow
@@ -108,9 +125,48 @@ WHOLE_SD_M, WHOLE_SD_PER_M = 0.1, 0.08
 CAMERA_BELOW_M = 0.06
 
 
+#: the camera height (m) and frame width (px) the pixel sizes in this module were calibrated at
+CAL_HEIGHT_M, CAL_WIDTH_PX = 3.5 - CAMERA_BELOW_M, 50
+#: K_PX_M / (H - TOP_M) was fitted at 2.5-4.5 m; flown higher it read whole blobs' offsets short
+#: by a scale that grows with the height (rendered, 8.1 m: -0.26 m at 6-8 m out, -3.7 %): the
+#: pixels per metre are divided by 1 + this * (H - CAL_HEIGHT_M). Fitted on 6775 whole blobs at
+#: heights round the three levels' (tuning seeds 1 and 2; the table is measured on 2026): 8.1 m,
+#: 6-8 m out, bias -0.26 -> -0.01 m, rms 0.46 -> 0.40 m; 5.8 m, 2-4 m out, -0.06 -> -0.01 m.
+#: Exactly 1 at CAL_HEIGHT_M (today's flights to the bit).
+HEIGHT_SCALE_PER_M = 0.0081
+
+
 def px_per_m(camera_height_m: float, width_px: int = 50) -> float:
     """Pixels per metre of ground offset for a target's top, the camera at this height."""
-    return K_PX_M * (width_px / 50.0) / max(camera_height_m - TOP_M, 0.3)
+    return (K_PX_M * (width_px / 50.0) / max(camera_height_m - TOP_M, 0.3)
+            / (1.0 + HEIGHT_SCALE_PER_M * (camera_height_m - CAL_HEIGHT_M)))
+
+
+def pixel_scale(camera_height_m: float, width_px: int) -> float:
+    """A target's linear size in pixels against the calibration's (1.0 exactly for a 50 px frame
+    from 3.44 m): pixel counts scale with its square."""
+    return px_per_m(camera_height_m, width_px) / px_per_m(CAL_HEIGHT_M, CAL_WIDTH_PX)
+
+
+@dataclass(frozen=True)
+class BlobSizes:
+    """The pixel counts a frame's blobs are judged by (`find_blobs`), for one pixel scale."""
+
+    min_blob: float
+    min_whole: float
+    core_min: float
+    coat_part: float
+    erosion: int  # erosion passes that part touching targets (`_split_touching`)
+
+    @classmethod
+    def at(cls, scale: float) -> BlobSizes:
+        """The calibration's sizes scaled by scale**2 (areas), with floors where a frame has too
+        few pixels per target to part or weigh them (a speck of 1-2 px is rendering noise at any
+        height); scale 1 gives the calibration's integers exactly."""
+        a = scale * scale
+        return cls(max(MIN_BLOB_PX * a, MIN_BLOB_FLOOR_PX), max(MIN_WHOLE_PX * a, MIN_BLOB_FLOOR_PX),
+                   max(CORE_MIN_PX * a, CORE_FLOOR_PX), max(COAT_PART_PX * a, CORE_FLOOR_PX),
+                   max(1, int(round(scale))))
 
 
 @dataclass(frozen=True)
@@ -161,9 +217,10 @@ class Blob:
         r = float(np.hypot(*self.offset_ne(camera_height_m)))
         return float(np.hypot(WHOLE_SD_M, WHOLE_SD_PER_M * r))
 
-    def beyond_view(self, camera_height_m: float) -> bool:
-        """A target two cells away whose near end shows at the frame's edge (EDGE_BEYOND_M)."""
-        return self.at_edge and self.inner_px / px_per_m(camera_height_m, self.width_px) > EDGE_BEYOND_M
+    def beyond_view(self, camera_height_m: float, radius: int = 1) -> bool:
+        """A target outside the (2 radius + 1)^2 window whose near end shows at the frame's edge
+        (EDGE_BEYOND_M for radius 1, further per ring: `edge_beyond_m`)."""
+        return self.at_edge and self.inner_px / px_per_m(camera_height_m, self.width_px) > edge_beyond_m(radius)
 
     def offset_ne(self, camera_height_m: float) -> tuple[float, float]:
         """The target's offset from the camera's nadir (north, east metres): GPS-free."""
@@ -173,17 +230,26 @@ class Blob:
                 self.col / k + EDGE_PUSH_M * (int(ce) - int(cw)))
 
 
-def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> list[Blob]:
+def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig(),
+               camera_height_m: float | None = None) -> list[Blob]:
     """(H, W, 3) uint8 -> the targets in the frame as blobs of non-grass pixels (8-connected).
-    A target that straddles a cell border is one blob with one centre, not two half-lit windows."""
+    A target that straddles a cell border is one blob with one centre, not two half-lit windows.
+
+    camera_height_m: the camera's height over the field as flown (the barometer/EKF altitude
+    less CAMERA_BELOW_M); None: the config's altitude_m less CAMERA_BELOW_M (3.44 m by default,
+    today's flights). The blob sizes follow it (`BlobSizes.at(pixel_scale(...))`)."""
     from scipy import ndimage
 
     h, w = frame.shape[:2]
+    height = cfg.altitude_m - CAMERA_BELOW_M if camera_height_m is None else float(camera_height_m)
+    if not (math.isfinite(height) and height > 0):
+        raise ValueError(f"camera_height_m must be a positive height in metres (got {camera_height_m})")
+    sizes_px = BlobSizes.at(pixel_scale(height, w))
     f = frame.astype(np.float32)
     off = _targets_mask(f, cfg)
-    lab, n = _split_touching(off)
-    lab, n = _split_coats(f, lab, n)
-    lab, n = _split_long(lab, n, LONG_SD_M * px_per_m(cfg.altitude_m - CAMERA_BELOW_M, w))
+    lab, n = _split_touching(off, sizes_px)
+    lab, n = _split_coats(f, lab, n, sizes_px.coat_part)
+    lab, n = _split_long(lab, n, LONG_SD_M * px_per_m(height, w), sizes_px.core_min)
     if n == 0:
         return []
     idx = np.arange(1, n + 1)
@@ -192,7 +258,7 @@ def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> lis
     out = []
     for i, (size, (cy, cx), (ys, xs)) in enumerate(zip(sizes, centres, ndimage.find_objects(lab), strict=True)):
         cut = (ys.start == 0, ys.stop == h, xs.start == 0, xs.stop == w)
-        if size >= MIN_BLOB_PX and (any(cut) or size >= MIN_WHOLE_PX):
+        if size >= sizes_px.min_blob and (any(cut) or size >= sizes_px.min_whole):
             inner = 0.0
             if any(cut):  # only cut blobs need it
                 py, px = np.nonzero(lab[ys, xs] == i + 1)
@@ -205,21 +271,26 @@ def find_blobs(frame: np.ndarray, cfg: DetectorConfig = DetectorConfig()) -> lis
 #: pixels (without this floor the erosion cut a cow's head off at the neck, 8-11 px, in 7 of 240
 #: rendered single cows; with it none)
 CORE_MIN_PX = 16
+#: floors of the scaled sizes (`BlobSizes.at`) for frames with few pixels per target (high up,
+#: or a coarse camera): a blob of fewer pixels is noise, a core or coat part of fewer is no part
+MIN_BLOB_FLOOR_PX, CORE_FLOOR_PX = 2, 4
 
 
-def _split_touching(off: np.ndarray) -> tuple[np.ndarray, int]:
+def _split_touching(off: np.ndarray, sizes_px: BlobSizes | None = None) -> tuple[np.ndarray, int]:
     """Label the non-grass pixels, one label per target. Targets in neighbouring cells can
     touch in the frame (a cow is 1.75 m long head to tail on a 2 m lattice, and its back, 1 m up,
     is magnified 1.4x): one blob, one centroid between the two. The mask is eroded once so the
     narrow contact gives way, its parts labelled (8-connected), and every pixel given the label
-    of the nearest part."""
+    of the nearest part. sizes_px: the sizes at the frame's pixel scale (None: the calibration's);
+    a finer frame is eroded as many times as it has pixels per calibration pixel."""
     from scipy import ndimage
 
+    sizes_px = sizes_px or BlobSizes.at(1.0)
     eight = np.ones((3, 3), bool)
-    core = ndimage.binary_erosion(off, structure=eight)
+    core = ndimage.binary_erosion(off, structure=eight, iterations=sizes_px.erosion)
     lab, n = ndimage.label(core, structure=eight)
     if n:  # a head cut off at the neck is not a target: small cores join their neighbour
-        small = np.flatnonzero(ndimage.sum_labels(core, lab, np.arange(1, n + 1)) < CORE_MIN_PX) + 1
+        small = np.flatnonzero(ndimage.sum_labels(core, lab, np.arange(1, n + 1)) < sizes_px.core_min) + 1
         core &= ~np.isin(lab, small)
         lab, n = ndimage.label(core, structure=eight)
     if n == 0:
@@ -245,7 +316,7 @@ COAT_RGB = np.array([[c * 255 * k for c in rgb] for rgb in ((0.08, 0.08, 0.08), 
 COAT_PART_PX = 20
 
 
-def _split_coats(f: np.ndarray, lab: np.ndarray, n: int) -> tuple[np.ndarray, int]:
+def _split_coats(f: np.ndarray, lab: np.ndarray, n: int, part_px: float = COAT_PART_PX) -> tuple[np.ndarray, int]:
     """Split blobs made of two coats' colours, each over COAT_PART_PX pixels, into one label
     per coat (touching targets whose contact the erosion did not break); the stray pixels of
     other colours go to the nearest part."""
@@ -259,7 +330,7 @@ def _split_coats(f: np.ndarray, lab: np.ndarray, n: int) -> tuple[np.ndarray, in
     for k in range(1, n + 1):
         inside = lab == k
         classes, counts = np.unique(coat[inside], return_counts=True)
-        major = classes[counts >= COAT_PART_PX]
+        major = classes[counts >= part_px]
         if len(major) < 2:
             continue
         parts = np.zeros_like(lab)
@@ -283,7 +354,7 @@ def _split_coats(f: np.ndarray, lab: np.ndarray, n: int) -> tuple[np.ndarray, in
 LONG_SD_M = 0.7
 
 
-def _split_long(lab: np.ndarray, n: int, long_sd_px: float) -> tuple[np.ndarray, int]:
+def _split_long(lab: np.ndarray, n: int, long_sd_px: float, core_min_px: float = CORE_MIN_PX) -> tuple[np.ndarray, int]:
     """Split each blob longer than long_sd_px (sd along its principal axis) into two by 2-means
     on its pixels' positions, seeded one sd either side of its centre along that axis."""
     if n == 0:
@@ -291,7 +362,7 @@ def _split_long(lab: np.ndarray, n: int, long_sd_px: float) -> tuple[np.ndarray,
     out, m = lab.copy(), n
     for k in range(1, n + 1):
         ys, xs = np.nonzero(lab == k)
-        if len(ys) < 2 * CORE_MIN_PX:
+        if len(ys) < 2 * core_min_px:
             continue
         pts = np.stack([ys, xs], axis=1).astype(float)
         centre = pts.mean(axis=0)
@@ -308,8 +379,39 @@ def _split_long(lab: np.ndarray, n: int, long_sd_px: float) -> tuple[np.ndarray,
             if np.allclose(new, seeds):
                 break
             seeds = new
-        if min(int((side == 0).sum()), int((side == 1).sum())) < CORE_MIN_PX:
+        if min(int((side == 0).sum()), int((side == 1).sum())) < core_min_px:
             continue
         m += 1
         out[ys[side == 1], xs[side == 1]] = m
     return out, m
+
+
+def window_cells(blobs: list[Blob], camera_offset_ne: tuple[float, float] | np.ndarray, camera_height_m: float,
+                 radius: int = 1, cell_m: float = 2.0) -> list[tuple[int, int] | None]:
+    """Each blob's slot (row, col) in the (2 radius + 1)^2 window a level of this radius sees
+    (rows north to south, the nadir cell at (radius, radius)), the camera camera_offset_ne (north,
+    east m) from the nadir cell's centre; None for a blob whose centre falls outside the window or
+    that is the near end of a target beyond it (`Blob.beyond_view`). The cell is the one the
+    blob's centre falls in, as `autopilot_bridge.view.blob_cells` reads it for radius 1."""
+    if radius < 0:
+        raise ValueError(f"radius must be >= 0 cells (got {radius})")
+    out: list[tuple[int, int] | None] = []
+    for b in blobs:
+        if b.beyond_view(camera_height_m, max(radius, 1)):  # radius 0: a 1 x 1 window
+            out.append(None)
+            continue
+        dn, de = b.offset_ne(camera_height_m)
+        n, e = float(camera_offset_ne[0]) + dn, float(camera_offset_ne[1]) + de
+        dx, dy = int(np.floor(e / cell_m + 0.5)), int(np.floor(-n / cell_m + 0.5))
+        out.append((dy + radius, dx + radius) if max(abs(dx), abs(dy)) <= radius else None)
+    return out
+
+
+def blobs_to_window(blobs: list[Blob], camera_offset_ne: tuple[float, float] | np.ndarray, camera_height_m: float,
+                    radius: int = 1, cell_m: float = 2.0) -> np.ndarray:
+    """(2 radius + 1, 2 radius + 1) bool: the window's cells some blob lights (`window_cells`)."""
+    out = np.zeros((2 * radius + 1, 2 * radius + 1), dtype=bool)
+    for rc in window_cells(blobs, camera_offset_ne, camera_height_m, radius, cell_m):
+        if rc is not None:
+            out[rc] = True
+    return out

@@ -9,7 +9,8 @@ import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="UAV multi-target search stack.")
 
-_COMMANDS = ("demo", "eval", "synth", "train", "table1", "quality", "sitl", "run", "flighttables", "field")
+_COMMANDS = ("demo", "eval", "synth", "train", "table1", "quality", "sitl", "run", "flighttables", "field",
+             "detcurve")
 
 
 def _register_all() -> None:

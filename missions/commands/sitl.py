@@ -94,6 +94,11 @@ def register(app: typer.Typer) -> None:
                  "our world (the PyBullet body driven by its motor commands, the same field and targets)."),
         autopilot_bin: Path | None = typer.Option(
             None, "--autopilot-bin", help="The autopilot binary (arducopter / px4); default $ARDUPILOT_SITL / $PX4_SITL."),
+        camera_px: int = typer.Option(
+            50, "--camera-px",
+            help="The downward camera's resolution, pixels a side (16..1024; 100 deg FoV at any size). The "
+                 "companion reads the size from each frame; `uavsearch detector-curve --camera-px` measures what "
+                 "its detector sees at that size from each flying height."),
     ) -> None:
         """Start SITL vehicles (PX4 or ArduCopter flavour) and print how to connect to them."""
         from missions.fieldfile import FieldSpec, write_field
@@ -118,6 +123,12 @@ def register(app: typer.Typer) -> None:
                 raise typer.BadParameter(str(e), param_hint="--signing-key-file") from e
         if not (math.isfinite(target_step_s) and target_step_s > 0):
             raise typer.BadParameter(f"{target_step_s}: must be > 0 s", param_hint="--target-step-s")
+        from sim.vehicle.scene import check_camera_px
+
+        try:
+            check_camera_px(camera_px)
+        except ValueError as e:
+            raise typer.BadParameter(str(e), param_hint="--camera-px") from e
         if cell_m != 2.0:
             raise typer.BadParameter(f"only 2 m cells are simulated so far (got {cell_m}): the camera, the field "
                                      "and the detector are built for 2 m", param_hint="--cell-m")
@@ -137,7 +148,7 @@ def register(app: typer.Typer) -> None:
         if autopilot != Autopilot.ours:
             _real_autopilot(autopilot.value, autopilot_bin, instance, count, speedup, physics, origin, grid, seed,
                             target_step_s, field_edge, field_out, fence_radius, fence_alt, gcs_port_per_instance,
-                            key, tlog, duration, cell_m)
+                            key, tlog, duration, cell_m, camera_px)
             return
         vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
         if vport is None:
@@ -166,6 +177,7 @@ def register(app: typer.Typer) -> None:
             except ValueError as e:
                 raise typer.BadParameter(str(e), param_hint="--video-port/--video-host/--video-rate/--video-qp") from e
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
+                             camera_px=camera_px,
                              target_step_s=target_step_s, field_edge=field_edge,
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
@@ -219,7 +231,8 @@ def register(app: typer.Typer) -> None:
 def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: int, speedup: float,
                     physics: Physics, origin, grid, seed: int, target_step_s: float, field_edge: bool,
                     field_out: Path, fence_radius: float, fence_alt: float, gcs_port_per_instance: bool,
-                    key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float) -> None:
+                    key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float,
+                    camera_px: int = 50) -> None:
     """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
     physics, the field file pointing the companion at the binary's API link."""
     from missions.fieldfile import FieldSpec, write_field
@@ -256,7 +269,8 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
         raise typer.BadParameter(f"{what} of instance {n} is taken: is another sitl on instance {n} running?",
                                  param_hint="--instance")
     cfg = AutopilotWorldConfig(autopilot=autopilot, instance=n, speedup=speedup, binary=binary, home=origin, grid=grid,
-                               episode_seed=seed + n, seed=seed + n, camera=True, field_edge=field_edge,
+                               episode_seed=seed + n, seed=seed + n, camera=True, camera_px=camera_px,
+                               field_edge=field_edge,
                                target_step_s=target_step_s, gcs_port=14550 + n if gcs_port_per_instance else 14550,
                                params=fence)
     world = AutopilotWorld(cfg)

@@ -30,7 +30,7 @@ from sim.mavlink.camera_component import CameraComponent, CameraInfo
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig
 from sim.vehicle.motor_quad import MotorQuadrotor, hover_throttle
-from sim.vehicle.scene import FieldScene
+from sim.vehicle.scene import FieldScene, check_camera_px
 
 from .ardupilot_json import ArduPilotJsonBridge, json_port
 from .processes import (
@@ -90,6 +90,7 @@ class AutopilotWorldConfig:
             raise ValueError(f"speedup must be > 0 (>= 0 for PX4: 0 runs as fast as possible; got {self.speedup})")
         if not self.target_step_s > 0:
             raise ValueError(f"target_step_s must be > 0 (got {self.target_step_s})")
+        check_camera_px(self.camera_px)
 
     @property
     def sysid(self) -> int:
@@ -100,7 +101,7 @@ class AutopilotWorldConfig:
                 "binary": None if self.binary is None else str(self.binary),
                 "home": {"lat": self.home.lat_deg, "lon": self.home.lon_deg, "alt": self.home.alt_m},
                 "grid": self.grid.to_dict(), "episode_seed": self.episode_seed, "seed": self.seed,
-                "camera": self.camera, "field_edge": self.field_edge, "target_step_s": self.target_step_s,
+                "camera": self.camera, "camera_px": self.camera_px, "field_edge": self.field_edge, "target_step_s": self.target_step_s,
                 "api_port": self.api_port, "gcs_port": self.gcs_port, "params": dict(self.params),
                 "camera_port": self.camera_ports[1] if self.camera_ports else None}
 

@@ -32,7 +32,7 @@ from sim.gridworld import BatchGridWorld, GridConfig
 from sim.vehicle.geo import HomePosition
 from sim.vehicle.gps import GpsConfig, GpsModel
 from sim.vehicle.model import FlightModel
-from sim.vehicle.scene import FieldScene
+from sim.vehicle.scene import FieldScene, check_camera_px
 
 from .camera_component import MAV_COMP_ID_CAMERA, CameraComponent, CameraInfo
 from .component_link import SharedLink
@@ -122,6 +122,7 @@ class SitlConfig:
             raise ValueError(f"physics must be 'pybullet' or 'kinematic' (got {self.physics!r})")
         if self.camera is None:
             self.camera = self.physics == "pybullet"
+        check_camera_px(self.camera_px)
         if self.camera_video_uri is not None:
             from .camera_component import CameraInfo
 

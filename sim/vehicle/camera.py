@@ -1,8 +1,11 @@
-"""The downward camera: 100 deg field of view, 50 x 50 px by default, rendered headless with
-PyBullet's software renderer. Image top is north (f, -y), image right is east (+x).
+"""The downward camera: 100 deg field of view, 50 x 50 px by default (any size: `sitl
+--camera-px`), rendered headless with PyBullet's software renderer. Image top is north (f, -y),
+image right is east (+x).
 
 At 3.5 m the footprint is 2 * 3.5 * tan(50 deg) = 8.3 m: about four 2 m cells, a little more
-than the grid world's 3 x 3 view, as in the paper's Gazebo setup (Section VI-C).
+than the grid world's 3 x 3 view, as in the paper's Gazebo setup (Section VI-C). Higher, it
+grows with the height (5.83 m: 13.9 m for a 5 x 5 view, 8.17 m: 19.5 m for 7 x 7, the same
+margin), and a cow spans fewer pixels (`uavsearch detector-curve` measures what that does).
 """
 
 from __future__ import annotations
@@ -18,8 +21,8 @@ from .field import Field, cell_to_enu
 from .frames import ned_to_enu
 
 ALTITUDE_M = 3.5
-
-
+#: the camera hangs this far below the airframe's reference point
+CAMERA_BELOW_M = 0.06
 class DownCamera:
     def __init__(self, client: int, width: int = 50, height: int = 50, fov_deg: float = 100.0) -> None:
         if width < 1 or height < 1 or not 1 < fov_deg < 179:
@@ -27,21 +30,33 @@ class DownCamera:
         self.cid, self.width, self.height, self.fov = client, width, height, fov_deg
         self.proj = p.computeProjectionMatrixFOV(fov_deg, width / height, 0.05, 50.0, physicsClientId=client)
 
-    def render_enu(self, eye_enu: np.ndarray) -> np.ndarray:
+    def render_enu(self, eye_enu: np.ndarray, attitude_rad: tuple[float, float, float] | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 from a camera at eye_enu looking straight down, image top north.
+        attitude_rad: (roll, pitch, yaw) of the camera off that (the gimbal's residual as the
+        vehicle hovers: `missions.detector_curve`); None, exactly nadir and north-up."""
         eye = [float(eye_enu[0]), float(eye_enu[1]), float(eye_enu[2])]
-        view = p.computeViewMatrix(eye, [eye[0], eye[1], 0.0], [0, 1, 0], physicsClientId=self.cid)
+        if attitude_rad is None:
+            view = p.computeViewMatrix(eye, [eye[0], eye[1], 0.0], [0, 1, 0], physicsClientId=self.cid)
+        else:
+            q = p.getQuaternionFromEuler([float(a) for a in attitude_rad])
+            rot = np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3)
+            look, up = rot @ np.array([0.0, 0.0, -1.0]), rot @ np.array([0.0, 1.0, 0.0])
+            view = p.computeViewMatrix(eye, [eye[i] + float(look[i]) for i in range(3)], [float(v) for v in up],
+                                       physicsClientId=self.cid)
         _, _, rgba, _, _ = p.getCameraImage(
             self.width, self.height, view, self.proj, renderer=p.ER_TINY_RENDERER,
             shadow=0, flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.cid,
         )
         return np.asarray(rgba, dtype=np.uint8).reshape(self.height, self.width, 4)[..., :3].copy()
 
-    def render(self, position_ned: np.ndarray, yaw: float = 0.0) -> np.ndarray:
+    def render(self, position_ned: np.ndarray, yaw: float = 0.0,
+               attitude_rad: tuple[float, float, float] | None = None) -> np.ndarray:
         """(H, W, 3) uint8 from a camera just below the airframe at position_ned. North-up
-        (the gimbal keeps the image aligned to the grid, as in the paper's setup)."""
+        (the gimbal keeps the image aligned to the grid, as in the paper's setup); attitude_rad:
+        the gimbal's residual pointing error (`render_enu`), None for none (the SITL's)."""
         eye = ned_to_enu(np.asarray(position_ned, dtype=float))
-        eye[2] = max(eye[2] - 0.06, 0.1)
-        return self.render_enu(eye)
+        eye[2] = max(eye[2] - CAMERA_BELOW_M, 0.1)
+        return self.render_enu(eye, attitude_rad)
 
 
 @dataclass(frozen=True)

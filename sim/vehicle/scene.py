@@ -15,6 +15,23 @@ from sim.gridworld import GridConfig, cell_to_ned, sample_episodes
 
 from .geo import HomePosition
 
+#: the resolutions a simulated camera may have (pixels a side; `sitl --camera-px`): below 16 a
+#: cow seen from 3.5 m is a few pixels, above 1024 a frame is megabytes over MAVLink's image
+#: protocol (ENCAPSULATED_DATA, 253 bytes a packet)
+CAMERA_PX_RANGE = (16, 1024)
+#: the ground beyond the grid's border cells (cells): from 8.17 m (altitude level 3) the 100 deg
+#: camera sees 9.7 m from its nadir, 5 cells; 4, enough at 3.5 m, showed the void (white) there.
+#: The frames at 2.5-4.5 m are the same to the pixel with 4 or 8 (200 rendered).
+MARGIN_CELLS = 8
+
+
+def check_camera_px(px: object) -> int:
+    """The camera's resolution (square frames, pixels a side), validated; the message names it."""
+    lo, hi = CAMERA_PX_RANGE
+    if isinstance(px, bool) or not isinstance(px, int | np.integer) or not lo <= int(px) <= hi:
+        raise ValueError(f"camera_px must be a whole number of pixels in {lo}..{hi} (got {px!r})")
+    return int(px)
+
 
 class FieldScene:
     def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float) -> None:
@@ -33,12 +50,15 @@ class FieldScene:
 
     def attach(self, client: int, seed: int, edge: bool, camera_px: int) -> None:
         """Render the field into PyBullet world `client` (centred on the spawn point) and make
-        the downward camera."""
+        the downward camera. The ground reaches MARGIN_CELLS beyond the grid, so a camera over a
+        border cell sees track, not the void, from any level's height."""
         from .camera import DownCamera
         from .field import Field
 
         g = self.grid
-        self.field = Field(client, g.width, g.height, g.n_targets, seed=seed, origin=self.episode.agent[0], edge=edge)
+        camera_px = check_camera_px(camera_px)
+        self.field = Field(client, g.width, g.height, g.n_targets, seed=seed, origin=self.episode.agent[0], edge=edge,
+                           margin_cells=MARGIN_CELLS)
         self.cam = DownCamera(client, camera_px, camera_px)
 
     def note_armed(self, t: float, armed: bool) -> None:
@@ -74,10 +94,11 @@ class FieldScene:
         if self.field is not None:
             self.field.set_targets(self.target_cells(t))
 
-    def render(self, t: float, position_ned: np.ndarray, yaw: float) -> np.ndarray:
+    def render(self, t: float, position_ned: np.ndarray, yaw: float,
+               attitude_rad: tuple[float, float, float] | None = None) -> np.ndarray:
         """The camera's frame at simulated time t from position_ned (the targets where they
-        are at t)."""
+        are at t); attitude_rad: the gimbal's residual pointing error (None: none, as flown)."""
         if self.cam is None:
             raise RuntimeError("FieldScene.render before attach(): no camera")
         self.update_targets(t)
-        return self.cam.render(position_ned, yaw)
+        return self.cam.render(position_ned, yaw, attitude_rad)

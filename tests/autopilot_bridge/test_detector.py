@@ -257,3 +257,47 @@ def test_a_near_end_at_the_frame_edge_is_weighed_between_one_and_two_cells_out()
         assert min(shown) >= 2, shown
     finally:
         r.close()
+
+
+def test_the_detector_reads_frames_from_any_height_into_its_levels_window() -> None:
+    """From 5.83 m and 8.17 m (altitude levels 2 and 3: 5 x 5 and 7 x 7 views) each cow lights
+    its own cell of the window; the blob sizes follow the height told (at 8.17 m a cow is ~10 px,
+    under the 12 px a whole blob needs at 3.44 m: the nadir cow was lost when the height was not
+    told). Told 3.44 m, or nothing, the detector is today's to the pixel count."""
+    import pybullet as p
+
+    from autopilot_bridge.detector import (
+        MIN_WHOLE_PX,
+        BlobSizes,
+        DetectorConfig,
+        blobs_to_window,
+        find_blobs,
+        pixel_scale,
+    )
+    from sim.vehicle.camera import DownCamera
+    from sim.vehicle.field import Field, cell_to_enu
+
+    assert pixel_scale(3.44, 50) == 1.0 and BlobSizes.at(1.0) == BlobSizes(4, 12, 16, 20, 1)
+    cid = p.connect(p.DIRECT)
+    try:
+        field = Field(cid, 20, 20, 5, seed=5, edge=True, margin_cells=8)
+        camera = DownCamera(cid, 50, 50)
+        cows = np.array([[10, 10], [11, 9], [8, 12], [13, 7], [7, 12]])  # rings 0, 1, 2, 3, 3 from (10, 10)
+        field.set_targets(cows)
+        offset = np.array([0.3, -0.25])  # the camera's (north, east) m off the cell's centre
+        for height, radius, want in ((35 / 6, 2, cows[:3]), (49 / 6, 3, cows)):
+            eye = cell_to_enu(np.array([10.0, 10.0]) + np.array([offset[1], -offset[0]]) / 2.0)
+            eye[2] = height - 0.06
+            frame = camera.render_enu(eye, (0.004, -0.006, 0.01))
+            lit = blobs_to_window(find_blobs(frame, DetectorConfig(), height - 0.06), offset, height - 0.06, radius)
+            expect = np.zeros_like(lit)
+            for x, y in want:
+                expect[y - 10 + radius, x - 10 + radius] = True
+            assert (lit == expect).all(), (height, np.argwhere(lit), np.argwhere(expect))
+        small = [b.pixels for b in find_blobs(frame, DetectorConfig(), 49 / 6 - 0.06)]
+        assert min(small) < MIN_WHOLE_PX and not blobs_to_window(find_blobs(frame), offset, 49 / 6 - 0.06, 3)[3, 3]
+        eye[2] = 3.44
+        low = camera.render_enu(eye)
+        assert find_blobs(low) == find_blobs(low, DetectorConfig(), 3.44) != []
+    finally:
+        p.disconnect(cid)

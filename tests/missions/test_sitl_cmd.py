@@ -45,3 +45,14 @@ def test_sitl_video_port_writes_the_sdp_and_the_field_file_names_it(tmp_path: Pa
     assert "m=video 27201 RTP/AVP 96" in (tmp_path / "f.sdp").read_text()
     r = runner.invoke(app, ["sitl", "--video-port", "fast"])
     assert r.exit_code == 2 and "--video-port" in r.output
+
+
+def test_sitl_camera_px_is_validated_before_anything_starts() -> None:
+    import pytest
+
+    for bad in ("8", "2048"):
+        r = runner.invoke(app, ["sitl", "--instance", "37", "--physics", "kinematic", "--camera-px", bad])
+        assert r.exit_code == 2 and "--camera-px" in r.output and "16..1024" in r.output, r.output
+    with pytest.raises(ValueError, match="camera_px must be a whole number of pixels in 16..1024"):
+        SitlConfig(camera_px=0)
+    assert SitlConfig(camera_px=120).to_dict()["camera_px"] == 120
