@@ -20,6 +20,7 @@ from sim.gridworld import cell_to_ned
 
 from .camera import CameraNotFound, FrameSource
 from .estimator import GpsEstimator
+from .fence import ensure_fence
 from .link import CommandRejected, LinkError, VehicleLink, mavlink
 from .preflight import ensure_failsafe
 from .registration import Registration
@@ -127,7 +128,8 @@ class Pilot:
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
         """Ask for the dialect's streams, check the companion-loss failsafe (preflight.py), wait
-        until the autopilot is ready (its dialect says what that takes), fix the schedule's
+        until the autopilot is ready (its dialect says what that takes), put the field's fence on
+        it when the spec has one (fence.py: FenceRefused stops here), fix the schedule's
         origin t_ref, register the launch point, arm half a second after the later of t_ref and
         the launch window's end (t_arm; ArduCopter in GUIDED first), take off half a second
         later, enter the dialect's guided mode at the hover CLIMB_S after that (`t_offboard`),
@@ -149,6 +151,8 @@ class Pilot:
         self.log.preflight += ensure_failsafe(link, link.conn.mav.srcSystem, self.spec.set_failsafe, log.warning)
         link.wait_for(lambda: dialect.not_ready(link.telemetry) is None, timeout,
                       lambda: dialect.not_ready(link.telemetry) or "readiness")
+        if self.spec.fence is not None:  # the field's fence on the autopilot, verified, or no take-off
+            self.log.preflight += ensure_fence(link, self.spec.fence, log.warning)
         link.wait_for(lambda: self.intake.has_fixes() or self.estimator.initialised, timeout,
                       "a position estimate")
         # the schedule's origin: the lattice point after the first fix this link heard (0 s when
