@@ -394,6 +394,7 @@ class ArduPilotFenceProtocol(FenceProtocol):
             self.host.statustext("Fence validation failed", M.MAV_SEVERITY_WARNING)
             return self.ack(src, M.MAV_MISSION_ERROR)
         self.store(items)
+        self.host.statustext("Fence Indexed OK", M.MAV_SEVERITY_DEBUG)  # index_eeprom, after the write
         return self.ack(src, M.MAV_MISSION_ACCEPTED)
 
     def load(self, items: list[FenceItem]) -> list[Zone]:
@@ -424,6 +425,7 @@ class ArduPilotFenceProtocol(FenceProtocol):
         if self.incoming is not None:
             return self.ack(self.src(msg), M.MAV_MISSION_ERROR)
         self.clear()
+        self.host.statustext("Fence Indexed OK", M.MAV_SEVERITY_DEBUG)
         return self.ack(self.src(msg), M.MAV_MISSION_ACCEPTED)
 
     def poll(self) -> None:

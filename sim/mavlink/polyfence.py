@@ -136,7 +136,7 @@ def ardupilot_validate(items: list[FenceItem]) -> str | None:
             elif it.command != expecting:
                 return f"Received incorrect vertex type (want={_ap_type(expecting)} got={_ap_type(it.command)})"
             elif n != orig:
-                return f"Unexpected vertex count want={orig} got={n}"
+                return f"Unexpected vertex count want={orig} got={n}\n"  # its format string's newline
             expected_left -= 1
             check_latlon = True
         elif it.command in CIRCLES:

@@ -57,15 +57,20 @@ def px4_sih(instance: int, speed: float = 5.0) -> Iterator[int]:
 
 
 @contextmanager
-def arducopter(instance: int, companion_port: int, speedup: float = 5.0) -> Iterator[int]:
+def arducopter(instance: int, companion_port: int, speedup: float = 5.0, base_port: int | None = None) -> Iterator[int]:
     """ArduCopter SITL with its own `+` quadrotor physics as instance `instance`, sending its
     MAVLink to UDP companion_port (--serial0 udpclient: it starts at once, no TCP client
-    needed); yields that port. Run in a temporary directory (eeprom.bin), wiped (-w)."""
+    needed); yields that port. Run in a temporary directory (eeprom.bin), wiped (-w).
+    base_port: every port it opens from there (its TCP serials at base_port + 2, + 3, RC in, the
+    simulator's and IRLock's at + 10 .. + 13) instead of 5760 + 10 x instance and the rest."""
     ap = binary("ARDUPILOT_SITL")
     tree = ap.parents[3]  # .../ardupilot/build/sitl/bin/arducopter -> .../ardupilot
     defaults = tree / "Tools" / "autotest" / "default_params" / "copter.parm"
     work = tempfile.mkdtemp(prefix=f"arducopter-{instance}-")
-    cmd = [str(ap), "-S", "-w", "--model", "+", "--speedup", str(speedup), "-I", str(instance),
+    ports = [] if base_port is None else [  # before -I, which adds 10 x instance to them
+        "--base-port", str(base_port), "--rc-in-port", str(base_port + 10), "--sim-port-in", str(base_port + 11),
+        "--sim-port-out", str(base_port + 12), "--irlock-port", str(base_port + 13)]
+    cmd = [str(ap), "-S", "-w", "--model", "+", "--speedup", str(speedup), *ports, "-I", str(instance),
            "--home", ",".join(str(v) for v in (*HOME, 0)), "--serial0", f"udpclient:127.0.0.1:{companion_port}"]
     if defaults.is_file():
         cmd += ["--defaults", str(defaults)]

@@ -234,7 +234,7 @@ def test_ardupilot_bad_fence_uploads_get_arducopters_answers(sitl_factory) -> No
         # validated at the end: a vertex count that changes mid-polygon
         bad = [_item(g, i, INC, 5 if i == 2 else 4, *p) for i, p in enumerate(sq)]
         assert _upload(g, bad)[0] == M.MAV_MISSION_ERROR
-        assert _said(g, "Fence validation failed") and _said(g, "Unexpected vertex count want=4 got=5")
+        assert _said(g, "Fence validation failed") and _said(g, "Unexpected vertex count want=4 got=5\n")
         assert len(sitl.vehicle.fences.items) == 4, "the fence before stays"
         wp = [_item(g, 0, M.MAV_CMD_NAV_WAYPOINT, 0, *sq[0])]
         assert _upload(g, wp)[0] == M.MAV_MISSION_UNSUPPORTED
