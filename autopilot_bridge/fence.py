@@ -41,6 +41,11 @@ class FenceRefused(RuntimeError):
     companion will not take off."""
 
 
+class FenceBreached(RuntimeError):
+    """The vehicle's position was seen outside the fence in flight: the companion flies it no
+    further (its next leg would take the vehicle back out of the autopilot's fence action)."""
+
+
 def to_e7(deg: float) -> int:
     return int(round(deg * 1e7))
 
@@ -107,6 +112,45 @@ def locate(point: tuple[int, int], ring: Sequence[tuple[int, int]]) -> int:
             if (cross > 0) == (by > ay):
                 inside = not inside
     return 1 if inside else -1
+
+
+def where(plan: FencePlan, lat_e7: int, lon_e7: int) -> str | None:
+    """None when the point is strictly inside the fence, else what it breaches."""
+    p = (lat_e7, lon_e7)
+    if locate(p, [(to_e7(a), to_e7(b)) for a, b in plan.inclusion]) <= 0:
+        return "outside the inclusion polygon"
+    for i, ring in enumerate(plan.exclusions):
+        if locate(p, [(to_e7(a), to_e7(b)) for a, b in ring]) >= 0:
+            return f"inside exclusion polygon {i}"
+    return None
+
+
+class BreachWatch:
+    """The autopilot's position estimate (GLOBAL_POSITION_INT) tested against the plan on the
+    link's receive thread: the first position outside is kept. The autopilots' own reports
+    differ (PX4 sets no SYS_STATUS geofence bit, ArduCopter streams SYS_STATUS only when asked),
+    the estimate and the fence they test are the same everywhere."""
+
+    def __init__(self, link: VehicleLink, plan: FencePlan) -> None:
+        self.link, self.plan = link, plan
+        self.outside: tuple[float, float, str] | None = None  # (lat, lon, what) first seen outside
+        link.add_handler(self._on)
+
+    def _on(self, msg) -> None:
+        if self.outside is None and msg.get_type() == "GLOBAL_POSITION_INT":
+            what = where(self.plan, msg.lat, msg.lon)
+            if what is not None:
+                self.outside = (msg.lat * 1e-7, msg.lon * 1e-7, what)
+
+    def check(self) -> None:
+        """FenceBreached, one line, once a position outside has been seen."""
+        if self.outside is not None:
+            lat, lon, what = self.outside
+            raise FenceBreached(f"fence breached: the vehicle was at ({lat:.7f}, {lon:.7f}), {what}; the companion "
+                                "flies no further legs")
+
+    def close(self) -> None:
+        self.link.remove_handler(self._on)
 
 
 def home_check(plan: FencePlan, lat: float, lon: float) -> None:

@@ -20,7 +20,7 @@ from sim.gridworld import cell_to_ned
 
 from .camera import CameraNotFound, FrameSource
 from .estimator import GpsEstimator
-from .fence import ensure_fence
+from .fence import BreachWatch, ensure_fence
 from .link import CommandRejected, LinkError, VehicleLink, mavlink
 from .preflight import ensure_failsafe
 from .registration import Registration
@@ -61,6 +61,8 @@ class Pilot:
         self.t_ref: float | None = None  # the schedule's origin on the simulated clock
         #: where take_off leaves the vehicle held, for the first leg and OFFBOARD
         self.t_offboard: float | None = None
+        #: the fence's watch on the vehicle's position (a spec with a fence; fence.BreachWatch)
+        self.fence_watch: BreachWatch | None = None
 
     def expect(self, seconds: float) -> None:
         """The decision loop promises its next step within `seconds`; past that it is hung and
@@ -100,7 +102,10 @@ class Pilot:
 
     def set_local(self, local: np.ndarray) -> np.ndarray:
         """Send a setpoint given in the autopilot's local (north, east) at once, logged, and
-        renew the loop's promise; back to OFFBOARD if the autopilot left it."""
+        renew the loop's promise; back to OFFBOARD if the autopilot left it. With a fence, a
+        position seen outside it stops here (FenceBreached) instead."""
+        if self.fence_watch is not None:
+            self.fence_watch.check()  # outside the fence: no leg that would undo its action
         self.log.setpoints_local.append([round(float(v), 4) for v in local])
         self.expect(DECISION_DEADLINE_S)
         with self._setpoint_lock:
@@ -153,6 +158,7 @@ class Pilot:
                       lambda: dialect.not_ready(link.telemetry) or "readiness")
         if self.spec.fence is not None:  # the field's fence on the autopilot, verified, or no take-off
             self.log.preflight += ensure_fence(link, self.spec.fence, log.warning)
+            self.fence_watch = BreachWatch(link, self.spec.fence)
         link.wait_for(lambda: self.intake.has_fixes() or self.estimator.initialised, timeout,
                       "a position estimate")
         # the schedule's origin: the lattice point after the first fix this link heard (0 s when

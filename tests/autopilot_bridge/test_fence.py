@@ -13,6 +13,8 @@ from bridge_pad import free_port, on_the_pad
 from autopilot_bridge.fence import (
     EXCLUSION,
     INCLUSION,
+    BreachWatch,
+    FenceBreached,
     FencePlan,
     FenceRefused,
     ensure_fence,
@@ -102,3 +104,11 @@ def test_pilot_refuses_to_take_off_with_home_outside_the_fence() -> None:
         with pytest.raises(FenceRefused, match="is inside the fence's exclusion polygon 0"):
             Pilot(pad.link, replace(pad.spec, fence=in_pond), pad.estimator, pad.intake, pad.reg, SearchLog(),
                   None).take_off(timeout=10)
+        # in flight: a position seen outside stops the next leg (it would undo the fence's action)
+        pilot.fence_watch = watch = BreachWatch(pad.link, in_pond)
+        pad.link.wait_for(lambda: watch.outside is not None, 5, "a position in the pond")
+        with pytest.raises(FenceBreached, match=r"^fence breached: the vehicle was at \(51\.\d+, -2\.\d+\), inside "
+                                                "exclusion polygon 0; the companion flies no further legs$"):
+            pilot.set_local(np.zeros(2))
+        assert pilot.log.setpoints_local == [], "no setpoint went out"
+        watch.close()

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from plain_gcs import Gcs, M
 from pymavlink import mavwp
 
@@ -191,6 +192,9 @@ def test_ardupilot_fence_round_trip_refusal_and_rtl_on_breach(sitl_factory, tmp_
         got = _download(g)
         _same(items, got)
         assert {(m.frame, m.z) for m in got} == {(M.MAV_FRAME_GLOBAL, 0.0)}
+        for seq, result in ((8, M.MAV_MISSION_ERROR), (9, M.MAV_MISSION_INVALID_SEQUENCE)):  # as the real one
+            g.c.mav.mission_request_int_send(g.sysid, 1, seq, FENCE)
+            assert g.recv("MISSION_ACK", 3).type == result
         for name, value in (("FENCE_ENABLE", 1), ("DISARM_DELAY", 0)):
             g.c.mav.param_set_send(g.sysid, 1, name.encode(), value, M.MAV_PARAM_TYPE_INT8)
             assert g.recv("PARAM_VALUE", 3, lambda m, n=name: m.param_id == n).param_value == value
@@ -247,12 +251,13 @@ def test_ardupilot_bad_fence_uploads_get_arducopters_answers(sitl_factory) -> No
         g.close()
 
 
-def test_mavsdk_geofence_plugin_uploads_and_downloads(sitl_factory) -> None:
+@pytest.mark.parametrize("dialect", ["px4", "ardupilot"])
+def test_mavsdk_geofence_plugin_uploads_and_downloads(sitl_factory, dialect: str) -> None:
     from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
     from mavsdk.asyncio.plugins.geofence import GeofenceAsync
     from mavsdk.plugins.geofence import Circle, FenceType, GeofenceData, Point, Polygon
 
-    sitl = sitl_factory(physics="kinematic", camera=False)
+    sitl = sitl_factory(physics="kinematic", camera=False, dialect=dialect)
     port = sitl.cfg.api_ports[1]
     inc = _square(sitl.home, -30, -30, 30, 30)
     exc = _square(sitl.home, 10, 10, 20, 20)
