@@ -292,8 +292,8 @@ class Px4FenceProtocol(FenceProtocol):
         return None
 
     def on_request(self, msg: mavlink.MAVLink_message) -> None:
-        if self.incoming is not None:
-            return None  # a request during an upload: PX4 answers busy
+        if self.incoming is not None:  # MAVLINK_WPM_STATE_GETLIST
+            return self._critical("WPM: REJ. CMD: Busy")
         items = self.host.fences.items
         if not 0 <= msg.seq < len(items):
             self._critical("WPM: REJ. CMD: Req. WP was unexpected")
