@@ -133,10 +133,10 @@ class Pilot:
     # -- the mission ---------------------------------------------------------------------
     def take_off(self, timeout: float = 60.0) -> None:
         """Ask for the dialect's streams, check the companion-loss failsafe (preflight.py), wait
-        until the autopilot is ready (its dialect says what that takes), put the field's fence on
-        it when the spec has one (fence.py: FenceRefused stops here), fix the schedule's
+        until the autopilot is ready (its dialect says what that takes), fix the schedule's
         origin t_ref, register the launch point, arm half a second after the later of t_ref and
-        the launch window's end (t_arm; ArduCopter in GUIDED first), take off half a second
+        the launch window's end (t_arm; ArduCopter in GUIDED first; before it, the field's fence
+        when the spec has one: fence.py, FenceRefused stops here), take off half a second
         later, enter the dialect's guided mode at the hover CLIMB_S after that (`t_offboard`),
         and return with the vehicle held LEG_AFTER_S later, for the decision loop's first leg.
 
@@ -156,9 +156,6 @@ class Pilot:
         self.log.preflight += ensure_failsafe(link, link.conn.mav.srcSystem, self.spec.set_failsafe, log.warning)
         link.wait_for(lambda: dialect.not_ready(link.telemetry) is None, timeout,
                       lambda: dialect.not_ready(link.telemetry) or "readiness")
-        if self.spec.fence is not None:  # the field's fence on the autopilot, verified, or no take-off
-            self.log.preflight += ensure_fence(link, self.spec.fence, log.warning)
-            self.fence_watch = BreachWatch(link, self.spec.fence)
         link.wait_for(lambda: self.intake.has_fixes() or self.estimator.initialised, timeout,
                       "a position estimate")
         # the schedule's origin: the lattice point after the first fix this link heard (0 s when
@@ -177,6 +174,12 @@ class Pilot:
         t_leg = self.t_offboard + LEG_AFTER_S
         timed = self._ask_ahead((t_arm, t_climb, self.t_offboard, t_leg))
         self.registration.register_launch()  # its window ends before t_arm
+        if self.spec.fence is not None:
+            # the field's fence on the autopilot, verified, or no take-off: once the schedule is
+            # fixed (a lockstep vehicle holds at t_arm meanwhile), so the transfer's wall time
+            # cannot move it (before t_ref it did: seed 2 flew 34 moves, then 44)
+            self.log.preflight += ensure_fence(link, self.spec.fence, log.warning)
+            self.fence_watch = BreachWatch(link, self.spec.fence)
         if dialect.heartbeat_feeds_failsafe:  # heard before arming: the failsafe watches from here
             link.heartbeat_now()
         if dialect.guided_before_arming:  # ArduCopter arms and takes off in GUIDED

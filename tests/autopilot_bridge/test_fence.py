@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from bridge_pad import free_port, on_the_pad
 
+from autopilot_bridge.camera import MavlinkCamera
 from autopilot_bridge.fence import (
     EXCLUSION,
     INCLUSION,
@@ -95,7 +96,7 @@ def test_pilot_refuses_to_take_off_with_home_outside_the_fence() -> None:
     with on_the_pad(36) as pad:
         h = pad.sitl.home
         outside = FencePlan.of(_square(h, 5, 5, 40, 40))
-        pilot = Pilot(pad.link, replace(pad.spec, fence=outside), pad.estimator, pad.intake, pad.reg, SearchLog(), None)
+        pilot = Pilot(pad.link, replace(pad.spec, fence=outside), pad.estimator, pad.intake, pad.reg, SearchLog(), MavlinkCamera(pad.link, discover_timeout_s=0.3))
         with pytest.raises(FenceRefused, match=r"^refusing to fly: home \(51\.\d{7}, -2\.\d{7}\) is outside the "
                                                "fence's inclusion polygon$"):
             pilot.take_off(timeout=10)
@@ -103,7 +104,7 @@ def test_pilot_refuses_to_take_off_with_home_outside_the_fence() -> None:
         in_pond = FencePlan.of(_square(h, -30, -30, 30, 30), [_square(h, -3, -3, 3, 3)])
         with pytest.raises(FenceRefused, match="is inside the fence's exclusion polygon 0"):
             Pilot(pad.link, replace(pad.spec, fence=in_pond), pad.estimator, pad.intake, pad.reg, SearchLog(),
-                  None).take_off(timeout=10)
+                  MavlinkCamera(pad.link, discover_timeout_s=0.3)).take_off(timeout=10)
         # in flight: a position seen outside stops the next leg (it would undo the fence's action)
         pilot.fence_watch = watch = BreachWatch(pad.link, in_pond)
         pad.link.wait_for(lambda: watch.outside is not None, 5, "a position in the pond")
