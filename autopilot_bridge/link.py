@@ -39,6 +39,42 @@ def check_address(address: str) -> None:
                          "udpin:0.0.0.0:14540), udpout:HOST:PORT, tcp:HOST:PORT or a serial device /dev/...")
 
 
+#: wall seconds without a single message from the other end after which a command's resends
+#: stop: a cut radio otherwise cost the 10 tries' ~22 s of growing waits before the companion
+#: said so (a lossy link still delivers most of its 10-30 Hz telemetry: never this silent)
+SILENT_GIVE_UP_S = 5.0
+
+
+def resend_until_acked(send: Callable[[int], None], cv: threading.Condition, acks: dict[int, int], cmd: int,
+                       timeout: float, retries: int, progress_timeout: float,
+                       silent_for: Callable[[], float]) -> tuple[int | None, int]:
+    """A COMMAND_LONG sent as send(confirmation) and resent with a growing wait until its ACK
+    lands in acks[cmd] (filled under cv by a receive thread). An ACK answers any copy, so a late
+    one for an earlier copy counts; MAV_RESULT_IN_PROGRESS waits (up to progress_timeout) for
+    the final ACK instead of resending. Gives up after `retries` tries, or sooner once nothing at
+    all has come from the other end for SILENT_GIVE_UP_S. Returns (the final result or None,
+    the tries made)."""
+    with cv:
+        acks.pop(cmd, None)
+    wait = timeout
+    for attempt in range(retries):
+        send(min(attempt, 255))
+        end = time.monotonic() + wait
+        with cv:
+            while True:
+                if not cv.wait_for(lambda: cmd in acks, max(end - time.monotonic(), 0.0)):
+                    break
+                result = acks.pop(cmd)
+                if result == mavlink.MAV_RESULT_IN_PROGRESS:
+                    end = time.monotonic() + progress_timeout  # working on it: wait, do not resend
+                    continue
+                return result, attempt + 1
+        if silent_for() > SILENT_GIVE_UP_S:
+            return None, attempt + 1
+        wait = min(wait * 1.5, 3.0)
+    return None, retries
+
+
 @dataclass
 class LinkStats:
     """What the link survived: the counts a lossy-link report shows."""
@@ -152,6 +188,7 @@ class VehicleLink:
         self._ack_cv = threading.Condition()
         self._send_lock = threading.Lock()  # pymavlink's MAVLink object is not thread-safe
         self._handlers: list = []
+        self._last_received = time.monotonic()  # nothing yet: counted from the link's opening
         self._stop = threading.Event()
         self._rx = threading.Thread(target=self._receive, name="mavlink-rx", daemon=True)
         self._rx.start()
@@ -226,6 +263,7 @@ class VehicleLink:
                 if msg is None or msg.get_type() == "BAD_DATA":
                     continue
                 self.stats.received += 1
+                self._last_received = time.monotonic()
                 if self.tlog is not None:
                     self.tlog.write_message(msg)
                 self._on_message(msg)
@@ -398,30 +436,29 @@ class VehicleLink:
         MAV_RESULT_IN_PROGRESS says the vehicle is working on it: we wait (up to
         `progress_timeout`) for the final ACK instead of resending."""
         p = list(params) + [0.0] * (7 - len(params))
-        with self._ack_cv:
-            self._acks.pop(cmd, None)
-        wait = timeout
         sent_at = time.monotonic()
-        for attempt in range(retries):
-            if attempt:
+
+        def send(confirmation: int) -> None:
+            if confirmation:
                 self.stats.command_retries += 1
             with self._send_lock:
-                self.conn.mav.command_long_send(*self.target, cmd, min(attempt, 255), *p)
-            end = time.monotonic() + wait
-            with self._ack_cv:
-                while True:
-                    got = self._ack_cv.wait_for(lambda: cmd in self._acks, max(end - time.monotonic(), 0.0))
-                    if not got:
-                        break
-                    result = self._acks.pop(cmd)
-                    if result == mavlink.MAV_RESULT_IN_PROGRESS:
-                        end = time.monotonic() + progress_timeout  # working on it: wait, do not resend
-                        continue
-                    if result != mavlink.MAV_RESULT_ACCEPTED:
-                        raise CommandRejected(cmd, result, self._reason_since(sent_at))
-                    return result
-            wait = min(wait * 1.5, 3.0)
-        raise LinkError(f"no COMMAND_ACK for command {cmd} after {retries} tries")
+                self.conn.mav.command_long_send(*self.target, cmd, confirmation, *p)
+
+        result, tries = resend_until_acked(send, self._ack_cv, self._acks, cmd, timeout, retries, progress_timeout,
+                                           self.silent_for)
+        if result is None:
+            raise LinkError(f"no COMMAND_ACK for command {cmd} after {tries} tries{self.silence_note()}")
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise CommandRejected(cmd, result, self._reason_since(sent_at))
+        return result
+
+    def silent_for(self) -> float:
+        """Wall seconds since the last message of any kind came in on this link."""
+        return time.monotonic() - self._last_received
+
+    def silence_note(self) -> str:
+        quiet = self.silent_for()
+        return f" (nothing heard on the link for {quiet:.0f} s)" if quiet > SILENT_GIVE_UP_S else ""
 
     def send_command_long(self, target: tuple[int, int], cmd: int, confirmation: int, *params: float) -> None:
         """One COMMAND_LONG to (system, component), not waited on: for another component of the

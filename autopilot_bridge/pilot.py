@@ -63,6 +63,19 @@ class Pilot:
         self.t_offboard: float | None = None
         #: the fence's watch on the vehicle's position (a spec with a fence; fence.BreachWatch)
         self.fence_watch: BreachWatch | None = None
+        #: the search height in the autopilot's local frame (down, m): fixed at take-off from
+        #: home's height there (TelemetryIntake.home_down_local)
+        self.search_d = -spec.altitude_m
+
+    def set_search_height(self) -> float:
+        """Fix the search height over home in the local frame (before a take-off, and when a
+        resumed search rejoins); returns it (down, m)."""
+        self.search_d = self.intake.home_down_local() - self.spec.altitude_m
+        return self.search_d
+
+    def climbed(self, above_m: float) -> bool:
+        """Whether the autopilot's estimate is more than above_m over home."""
+        return self.link.telemetry.local.get("d", 0.0) < self.search_d + self.spec.altitude_m - above_m
 
     def expect(self, seconds: float) -> None:
         """The decision loop promises its next step within `seconds`; past that it is hung and
@@ -109,7 +122,7 @@ class Pilot:
         self.log.setpoints_local.append([round(float(v), 4) for v in local])
         self.expect(DECISION_DEADLINE_S)
         with self._setpoint_lock:
-            self._setpoint = np.array([local[0], local[1], -self.spec.altitude_m])
+            self._setpoint = np.array([local[0], local[1], self.search_d])
             self.link.set_position_ned(*self._setpoint)
         if self.link.telemetry.mode != self.link.require_dialect().guided_mode:
             self._enter_offboard()  # the first leg, or the autopilot dropped out
@@ -189,15 +202,16 @@ class Pilot:
         link.arm()
         if timed:
             self._held_at(t_climb, timeout)
+        self.set_search_height()
         link.takeoff(dialect.takeoff_altitude(link.telemetry.home["alt"], self.spec.altitude_m))
         if timed:
             self._held_at(self.t_offboard, timeout)
             # climbing by then (the last decimetres come slowly; OFFBOARD's setpoint finishes them)
-            link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -self.spec.altitude_m / 2, min(timeout, 3.0),
+            link.wait_for(lambda: self.climbed(self.spec.altitude_m / 2), min(timeout, 3.0),
                           f"take-off above {self.spec.altitude_m / 2:.1f} m by {self.t_offboard:.1f} s (simulated)")
         else:
-            link.wait_for(lambda: link.telemetry.local.get("d", 0.0) < -(self.spec.altitude_m - 0.4),
-                          timeout, f"take-off to {self.spec.altitude_m} m")
+            link.wait_for(lambda: self.climbed(self.spec.altitude_m - 0.4), timeout,
+                          f"take-off to {self.spec.altitude_m} m")
             self.t_offboard = max(self.t_offboard, self.intake.sim_time_s)
         if self.registration.launch_registered:
             # the climb's fixes are left out: the registered launch predicted forward stands
@@ -219,7 +233,7 @@ class Pilot:
         sent at once, then streamed by its thread under the decision loop's deadline, and the
         dialect's guided mode taken (after take-off, and when a resumed search rejoins)."""
         with self._setpoint_lock:
-            self._setpoint = np.array([here[0], here[1], -self.spec.altitude_m])
+            self._setpoint = np.array([here[0], here[1], self.search_d])
             self.link.set_position_ned(*self._setpoint)
         self.expect(DECISION_DEADLINE_S)
         threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()

@@ -92,6 +92,7 @@ def rejoin(service: PolicyService, doc: JournalDoc, loop: LoopState, timeout: fl
             "written: the autopilot has restarted since, and the journal's times, home and GPS bias are not "
             "its; a restarted autopilot is not rejoined: start a new search (another --out)")
     home_moved = _follow_home(service, doc)
+    service.pilot.set_search_height()  # over this home (a take-off below fixes it again)
     try:  # whether it has landed: EXTENDED_SYS_STATE, else its height
         link.wait_for(lambda: tel.landed_state != 0, 3.0, "landed state")
         in_air = tel.armed and tel.landed_state != ON_GROUND
@@ -146,9 +147,9 @@ def _take_off_again(service: PolicyService, timeout: float) -> None:
     if dialect.guided_before_arming:  # ArduCopter arms and takes off in GUIDED
         link.set_mode(dialect.guided_mode)
     _arm_after_failsafe(link, dialect.heartbeat_feeds_failsafe)
+    service.pilot.set_search_height()
     link.takeoff(dialect.takeoff_altitude(tel.home["alt"], spec.altitude_m))
-    link.wait_for(lambda: tel.local.get("d", 0.0) < -(spec.altitude_m - 0.4), timeout,
-                  f"take-off to {spec.altitude_m} m")
+    link.wait_for(lambda: service.pilot.climbed(spec.altitude_m - 0.4), timeout, f"take-off to {spec.altitude_m} m")
 
 
 def _arm_after_failsafe(link, by_heartbeat: bool, wait_s: float = 15.0) -> None:

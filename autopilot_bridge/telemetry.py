@@ -98,6 +98,14 @@ class TelemetryIntake:
             return self.home_in_field() - np.array([h.get("x", 0.0), h.get("y", 0.0), h.get("z", 0.0)])
         return self.origin.geodetic_to_ned(o["lat"], o["lon"], o["alt"])
 
+    def home_down_local(self) -> float:
+        """Home's height in the autopilot's local frame (down, m): the ground the search height
+        is counted from. PX4's EKF2 sets its origin's altitude from the GPS at its first fix
+        and holds height on the barometer after, so the ground sat 0.4-0.8 m from the origin's
+        z = 0 and a setpoint at d = -3.5 flew the camera 3.9-4.3 m up (measured, seed 3); home
+        is where the vehicle stood. Our SITL's home is its origin: 0."""
+        return float(self.home_in_field()[2] - self.local_origin_in_field()[2])
+
     def field_to_local(self, ne_field: np.ndarray) -> np.ndarray:
         off = self.local_origin_in_field()
         return np.array([ne_field[0] - off[0], ne_field[1] - off[1]])

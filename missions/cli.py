@@ -9,7 +9,7 @@ import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="UAV multi-target search stack.")
 
-_COMMANDS = ("demo", "eval", "synth", "train", "table1", "quality", "sitl", "run", "flighttables")
+_COMMANDS = ("demo", "eval", "synth", "train", "table1", "quality", "sitl", "run", "flighttables", "field")
 
 
 def _register_all() -> None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +23,7 @@ import numpy as np
 # the camera protocol's ids (mavutil's default MAVLink 1 dialect lacks them)
 from pymavlink.dialects.v20 import common as mavlink
 
-from ..link import CommandRejected, LinkError, VehicleLink
+from ..link import CommandRejected, LinkError, VehicleLink, resend_until_acked
 from .png import FrameAssembler
 from .source import Stamped, ask_until_whole
 
@@ -203,27 +202,20 @@ class MavlinkCamera:
         CommandRejected / LinkError."""
         target = self._require_target()
         p = list(params) + [0.0] * (7 - len(params))
-        with self._cv:
-            self._acks.pop(cmd, None)
-        wait = timeout
-        for attempt in range(retries):
-            if attempt:
+
+        def send(confirmation: int) -> None:
+            if confirmation:
                 self.command_retries += 1
-            self.link.send_command_long((target.system_id, target.component_id), cmd, min(attempt, 255), *p)
-            end = time.monotonic() + wait
-            with self._cv:
-                while True:
-                    if not self._cv.wait_for(lambda: cmd in self._acks, max(end - time.monotonic(), 0.0)):
-                        break
-                    result = self._acks.pop(cmd)
-                    if result == mavlink.MAV_RESULT_IN_PROGRESS:
-                        end = time.monotonic() + 30.0
-                        continue
-                    if result != mavlink.MAV_RESULT_ACCEPTED:
-                        raise CommandRejected(cmd, result)
-                    return result
-            wait = min(wait * 1.5, 3.0)
-        raise LinkError(f"no COMMAND_ACK from the camera {target.describe()} for command {cmd} after {retries} tries")
+            self.link.send_command_long((target.system_id, target.component_id), cmd, confirmation, *p)
+
+        result, tries = resend_until_acked(send, self._cv, self._acks, cmd, timeout, retries, 30.0,
+                                           self.link.silent_for)
+        if result is None:
+            raise LinkError(f"no COMMAND_ACK from the camera {target.describe()} for command {cmd} after {tries} "
+                            f"tries{self.link.silence_note()}")
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise CommandRejected(cmd, result)
+        return result
 
     # -- frames (FrameSource) --------------------------------------------------------------
     def ask(self, at_s: float) -> None:
