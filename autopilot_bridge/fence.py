@@ -87,6 +87,13 @@ class FencePlan:
         `exclusions: list[list[(lat, lon)]]`."""
         return cls(tuple(map(tuple, inclusion)), tuple(tuple(map(tuple, r)) for r in exclusions))
 
+    @classmethod
+    def of_field(cls, field) -> FencePlan:
+        """A polygon field's fence: its outer ring, and each no-fly zone (holes and exclusions)
+        as an exclusion polygon. Duck-typed on sim.field.PolygonField (`outer`, `no_fly[i].ring`)
+        so the companion does not import the field module."""
+        return cls.of(field.outer, [z.ring for z in field.no_fly])
+
     def items(self) -> list[tuple[int, int, int, int]]:
         """(command, vertex count, lat e7, lon e7) per item, in upload order."""
         out = []

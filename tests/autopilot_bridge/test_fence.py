@@ -5,6 +5,7 @@ pilot refuses to take off when home lies outside."""
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -113,3 +114,25 @@ def test_pilot_refuses_to_take_off_with_home_outside_the_fence() -> None:
             pilot.set_local(np.zeros(2))
         assert pilot.log.setpoints_local == [], "no setpoint went out"
         watch.close()
+
+
+@pytest.mark.parametrize("name", ["farm_barn", "l_paddock_30deg", "pond_meadow"])
+def test_an_example_fields_fence_goes_up_from_a_searchable_cell(name: str) -> None:
+    from sim.field.model import load_field
+    from sim.vehicle.geo import HomePosition
+
+    field = load_field(Path(__file__).parents[2] / "examples" / "fields" / "out" / name / "field.json")
+    plan = FencePlan.of_field(field)
+    assert plan.inclusion == tuple(field.outer[:-1] if field.outer[-1] == field.outer[0] else field.outer)
+    assert len(plan.exclusions) == len(field.no_fly)
+    y, x = (int(v) for v in np.argwhere(field.mask)[len(np.argwhere(field.mask)) // 2])
+    lat, lon = field.cell_to_latlon((x, y))
+    sitl = Sitl(SitlConfig(home=HomePosition(lat, lon, 30.0), speedup=10.0, physics="kinematic", camera=False,
+                           gcs_link=False, api_local_port=free_port(), api_remote_port=free_port())).start()
+    try:
+        with VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}") as link:
+            link.wait_heartbeat()
+            assert ensure_fence(link, plan)[0].startswith(f"fence: {len(plan.items())} vertices uploaded")
+            assert len(sitl.vehicle.fences.zones) == 1 + len(field.no_fly), "PX4 kept every zone: home is inside"
+    finally:
+        sitl.stop()
