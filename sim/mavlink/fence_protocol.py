@@ -9,7 +9,9 @@ autopilot family answers it (their ACK results and STATUSTEXTs word for word):
   INVALID_PARAMn (mavlink_command_params.hpp: fence items use param 1 and x/y only, so z must
   be 0), a polygon vertex with a vertex count below 3 is ERROR; each ends the upload. The last
   item sent again after the ACK is ACKed again. Stored, the fence is loaded as
-  Geofence::_updateFence does (polyfence.px4_zones, its home and position checks).
+  Geofence::_updateFence does (polyfence.px4_zones, its home and position checks); read back,
+  every item is in GLOBAL_INT. Its STATUSTEXTs keep the trailing tab PX4 sends (the mark of a
+  text that also goes out as an event), as the real SITL was seen to.
 - ArduCopter (libraries/GCS_MAVLink/MissionItemProtocol.cpp, MissionItemProtocol_Fence.cpp,
   2024-05): at most 70 items on SITL (fence storage / 8 bytes: "Only 70 items are
   supported", NO_SPACE); a COUNT from another station during an upload is DENIED, from the same
@@ -28,6 +30,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink
@@ -203,7 +206,7 @@ class Px4FenceProtocol(FenceProtocol):
                 return self.ack(src, M.MAV_MISSION_ERROR)
             if self.transfer_seq == 0:
                 return self._request()  # "looks like our MISSION_REQUEST was lost, try again"
-            self._critical("WPM: REJ. CMD: Busy")
+            self._critical("WPM: REJ. CMD: Busy\t")
             return self.ack(src, M.MAV_MISSION_ERROR)
         self.partner = src
         if msg.count > self.MAX_ITEMS:
@@ -239,19 +242,19 @@ class Px4FenceProtocol(FenceProtocol):
     def on_item(self, msg: mavlink.MAVLink_message) -> None:
         src = self.src(msg)
         if self.partner is not None and src != self.partner:
-            return self._critical("REJ. MIS ITEM: partner id mismatch")
+            return self._critical("REJ. MIS ITEM: partner id mismatch\t")
         inc = self.incoming
         if inc is None:  # MAVLINK_WPM_STATE_IDLE
             if self.partner is not None and self.transfer_seq == msg.seq + 1:
                 return self.ack(src, M.MAV_MISSION_ACCEPTED)  # our ACK was lost: the same again
-            self._critical("IGN MISSION_ITEM: No transfer")
+            self._critical("IGN MISSION_ITEM: No transfer\t")
             return self.ack(src, M.MAV_MISSION_ERROR)
         self.last_recv = self.clock()
         if msg.seq != self.transfer_seq:
             return None  # "Item sequence not expected, ignore item"
         item = self._parse(msg)
         if isinstance(item, int):
-            self._critical("IGN MISSION_ITEM: Invalid item")
+            self._critical("IGN MISSION_ITEM: Invalid item\t")
             self.incoming = None
             return self.ack(src, item)
         if item.command in POLYGONS and int(item.param1 + 0.5) < 3:  # "Fence: too few vertices"
@@ -276,35 +279,38 @@ class Px4FenceProtocol(FenceProtocol):
             lat, lon, _ = h.home.ned_to_geodetic(h.estimate())
         for z in px4_zones(items):
             if not px4_zone_passes(z, h.home.lat_deg, h.home.lon_deg):
-                self._critical("Geofence invalid, doesn't contain Home position")
+                self._critical("Geofence invalid, doesn't contain Home position\t")
             elif flying and not px4_zone_passes(z, lat, lon):
-                self._critical("Geofence invalid, doesn't contain current vehicle position")
+                self._critical("Geofence invalid, doesn't contain current vehicle position\t")
             else:
                 kept.append(z)
         return kept
 
     def on_request_list(self, msg: mavlink.MAVLink_message) -> None:
-        if self.incoming is not None:
-            self._critical("WPM: IGN REQUEST LIST: Busy")
-            return self.ack(self.src(msg), M.MAV_MISSION_ERROR)
+        if self.incoming is not None:  # no ACK: "ignored"
+            return self.host.statustext("Mission download request ignored, already active\t", M.MAV_SEVERITY_INFO)
         self.partner, self.transfer_seq = self.src(msg), 0
         self.host.send(self.host.mav.mission_count_encode(*self.src(msg), len(self.host.fences.items), FENCE))
         return None
 
     def on_request(self, msg: mavlink.MAVLink_message) -> None:
         if self.incoming is not None:  # MAVLINK_WPM_STATE_GETLIST
-            return self._critical("WPM: REJ. CMD: Busy")
+            return self._critical("WPM: REJ. CMD: Busy\t")
         items = self.host.fences.items
         if not 0 <= msg.seq < len(items):
-            self._critical("WPM: REJ. CMD: Req. WP was unexpected")
+            self._critical("WPM: REJ. CMD: Req. WP was unexpected\t")
             return self.ack(self.src(msg), M.MAV_MISSION_ERROR)
         self.transfer_seq = msg.seq + 1
-        self.send_item(self.src(msg), items[msg.seq], msg.get_type() == "MISSION_REQUEST_INT")
+        as_int = msg.get_type() == "MISSION_REQUEST_INT"
+        # format_mavlink_mission_item: a fence point has no relative altitude, so it goes out in
+        # GLOBAL_INT (GLOBAL to MISSION_REQUEST) whatever frame it came in (measured: 0 -> 5)
+        it = replace(items[msg.seq], frame=M.MAV_FRAME_GLOBAL_INT if as_int else M.MAV_FRAME_GLOBAL)
+        self.send_item(self.src(msg), it, as_int)
         return None
 
     def on_clear(self, msg: mavlink.MAVLink_message) -> None:
         if self.incoming is not None:
-            self._critical("WPM: IGN CLEAR CMD: Busy")
+            self._critical("WPM: IGN CLEAR CMD: Busy\t")
             return self.ack(self.src(msg), M.MAV_MISSION_ERROR)
         self.clear()
         return self.ack(self.src(msg), M.MAV_MISSION_ACCEPTED)
@@ -314,7 +320,7 @@ class Px4FenceProtocol(FenceProtocol):
             return
         now = self.clock()
         if now - self.last_recv > self.TIMEOUT_S:
-            self._critical("Mission sync timeout")
+            self._critical("Mission sync timeout\t")
             self.incoming = None
         elif now - self.last_sent > self.RETRY_S:
             self._request()

@@ -127,7 +127,9 @@ def test_px4_fence_from_a_mavproxy_file_round_trip_and_hold_on_breach(sitl_facto
         result, requests = _upload(g, items)
         assert result == M.MAV_MISSION_ACCEPTED
         assert requests == [("MISSION_REQUEST_INT", i) for i in range(8)], "PX4 asks with MISSION_REQUEST_INT"
-        _same(items, _download(g))
+        got = _download(g)
+        _same(items, got)
+        assert {m.frame for m in got} == {M.MAV_FRAME_GLOBAL_INT}, "PX4 reads fence points back in GLOBAL_INT"
         assert [z.command for z in sitl.vehicle.fences.zones] == [INC, EXC]
         # fly: take off, then an offboard setpoint 60 m north (inside the 100 m cylinder, outside the polygon)
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
@@ -167,11 +169,11 @@ def test_px4_bad_fence_uploads_get_px4s_answers(sitl_factory) -> None:
         away = [_item(g, i, INC, 4, *p) for i, p in enumerate(_square(h, 40, 40, 60, 60))]
         assert _upload(g, away)[0] == M.MAV_MISSION_ACCEPTED
         assert sitl.vehicle.fences.zones == [] and len(sitl.vehicle.fences.items) == 4
-        assert _said(g, "Geofence invalid, doesn't contain Home position")
+        assert _said(g, "Geofence invalid, doesn't contain Home position\t")
         # the ground station falls silent mid-upload: dropped after the timeout, without an ACK
         sitl.vehicle.missions.fences.TIMEOUT_S = 0.5
         g.c.mav.mission_count_send(g.sysid, 1, 4, FENCE)
-        assert _said(g, "Mission sync timeout")
+        assert _said(g, "Mission sync timeout\t")
         assert sitl.vehicle.missions.fences.incoming is None
     finally:
         g.close()
