@@ -244,6 +244,17 @@ class VehicleLink:
         """fn(msg) is called from the receive thread for every message."""
         self._handlers.append(fn)
 
+    def remove_handler(self, fn) -> None:
+        """Stop calling fn (a transfer's queue, fence.py, once it is done)."""
+        if fn in self._handlers:
+            self._handlers.remove(fn)
+
+    def send_message(self, msg) -> None:
+        """Send one message the caller built with `conn.mav.*_encode` (the mission protocol's,
+        fence.py), under the lock every sender here takes."""
+        with self._send_lock:
+            self.conn.mav.send(msg)
+
     def _receive(self) -> None:
         """Never dies: whatever a message or a handler throws is counted, logged and survived."""
         while not self._stop.is_set():

@@ -20,6 +20,7 @@ from sim.gridworld import cell_to_ned
 
 from .camera import CameraNotFound, FrameSource
 from .estimator import GpsEstimator
+from .fence import BreachWatch, ensure_fence
 from .link import CommandRejected, LinkError, VehicleLink, mavlink
 from .preflight import ensure_failsafe
 from .registration import Registration
@@ -60,6 +61,8 @@ class Pilot:
         self.t_ref: float | None = None  # the schedule's origin on the simulated clock
         #: where take_off leaves the vehicle held, for the first leg and OFFBOARD
         self.t_offboard: float | None = None
+        #: the fence's watch on the vehicle's position (a spec with a fence; fence.BreachWatch)
+        self.fence_watch: BreachWatch | None = None
         #: the search height in the autopilot's local frame (down, m): fixed at take-off from
         #: home's height there (TelemetryIntake.home_down_local)
         self.search_d = -spec.altitude_m
@@ -112,7 +115,10 @@ class Pilot:
 
     def set_local(self, local: np.ndarray) -> np.ndarray:
         """Send a setpoint given in the autopilot's local (north, east) at once, logged, and
-        renew the loop's promise; back to OFFBOARD if the autopilot left it."""
+        renew the loop's promise; back to OFFBOARD if the autopilot left it. With a fence, a
+        position seen outside it stops here (FenceBreached) instead."""
+        if self.fence_watch is not None:
+            self.fence_watch.check()  # outside the fence: no leg that would undo its action
         self.log.setpoints_local.append([round(float(v), 4) for v in local])
         self.expect(DECISION_DEADLINE_S)
         with self._setpoint_lock:
@@ -142,7 +148,8 @@ class Pilot:
         """Ask for the dialect's streams, check the companion-loss failsafe (preflight.py), wait
         until the autopilot is ready (its dialect says what that takes), fix the schedule's
         origin t_ref, register the launch point, arm half a second after the later of t_ref and
-        the launch window's end (t_arm; ArduCopter in GUIDED first), take off half a second
+        the launch window's end (t_arm; ArduCopter in GUIDED first; before it, the field's fence
+        when the spec has one: fence.py, FenceRefused stops here), take off half a second
         later, enter the dialect's guided mode at the hover CLIMB_S after that (`t_offboard`),
         and return with the vehicle held LEG_AFTER_S later, for the decision loop's first leg.
 
@@ -180,6 +187,12 @@ class Pilot:
         t_leg = self.t_offboard + LEG_AFTER_S
         timed = self._ask_ahead((t_arm, t_climb, self.t_offboard, t_leg))
         self.registration.register_launch()  # its window ends before t_arm
+        if self.spec.fence is not None:
+            # the field's fence on the autopilot, verified, or no take-off: once the schedule is
+            # fixed (a lockstep vehicle holds at t_arm meanwhile), so the transfer's wall time
+            # cannot move it (before t_ref it did: seed 2 flew 34 moves, then 44)
+            self.log.preflight += ensure_fence(link, self.spec.fence, log.warning)
+            self.fence_watch = BreachWatch(link, self.spec.fence)
         if dialect.heartbeat_feeds_failsafe:  # heard before arming: the failsafe watches from here
             link.heartbeat_now()
         if dialect.guided_before_arming:  # ArduCopter arms and takes off in GUIDED

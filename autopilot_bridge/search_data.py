@@ -17,6 +17,7 @@ from sim.gridworld import GridConfig
 from sim.gridworld.geodesy import HomePosition
 
 from .detector import CAMERA_BELOW_M
+from .fence import FencePlan
 
 VISIT_MAPS = ("probabilistic", "hard")
 
@@ -57,6 +58,9 @@ class SearchSpec:
     #: the launch registration takes as the truth beside its fixes; None: HOME_POSITION, which
     #: is that pad on our SITL but the GPS's (biased) fix at arming on a real autopilot
     launch_ne: tuple[float, float] | None = None
+    #: the field's fence, uploaded, read back and enabled before take-off, which is refused
+    #: when that fails or home lies outside (autopilot_bridge.fence); None: no fence is sent
+    fence: FencePlan | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):

@@ -6,10 +6,10 @@ from __future__ import annotations
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from .ardupilot import ArduPilot
-from .base import Dialect, FailsafeRule, Stream
+from .base import Dialect, FailsafeRule, FenceParam, Stream
 from .px4 import PX4
 
-__all__ = ["ArduPilot", "Dialect", "FailsafeRule", "PX4", "Stream", "by_name", "for_autopilot", "NAMES"]
+__all__ = ["ArduPilot", "Dialect", "FailsafeRule", "FenceParam", "PX4", "Stream", "by_name", "for_autopilot", "NAMES"]
 
 _BY_NAME: dict[str, Dialect] = {"px4": PX4(), "ardupilot": ArduPilot()}
 NAMES = ("auto", *_BY_NAME)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from .base import COMMON_STREAMS, Dialect, FailsafeRule, Stream
+from .base import COMMON_STREAMS, Dialect, FailsafeRule, FenceParam, Stream
 
 #: ArduCopter's custom modes (ArduCopter/mode.h Mode::Number)
 MODES = {"STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6,
@@ -26,6 +26,10 @@ _NAMES = {v: k for k, v in MODES.items()}
 #: 7 Brake or Land; 0 disables the failsafe
 GCS_FS_ACTIONS = {1: "RTL", 2: "RTL", 3: "SmartRTL or RTL", 4: "SmartRTL or Land", 5: "Land",
                   6: "Auto DO_LAND_START or RTL", 7: "Brake or Land"}
+FENCE_TYPE_POLYGON = 4  # AC_FENCE_TYPE_POLYGON: inclusion/exclusion polygons and circles
+#: FENCE_ACTION (AC_Fence.cpp, Copter): 0 reports only
+FENCE_ACTIONS = {0: "Report Only", 1: "RTL or Land", 2: "Always Land", 3: "SmartRTL or RTL or Land",
+                 4: "Brake or Land", 5: "SmartRTL or Land"}
 #: EKF_STATUS_REPORT flags
 EKF_POS_HORIZ_ABS = 16
 EKF_CONST_POS_MODE = 128
@@ -81,4 +85,17 @@ class ArduPilot(Dialect):
                          "unnoticed while that one lives"),
             FailsafeRule("RTL_ALT_FINAL", lambda v: v == 0, 0.0,
                          "RTL's final altitude (cm): above 0 RTL hovers there instead of landing", default=0.0),
+        )
+
+    def fence_params(self) -> tuple[FenceParam, ...]:
+        """AC_Fence: polygons are enforced only with FENCE_TYPE bit 4 and FENCE_ENABLE 1 (both
+        checked when a breach is); FENCE_ACTION 0 only reports (set to 1, RTL or Land, its
+        default). FENCE_ENABLE last, once the rest is right."""
+        return (
+            FenceParam("FENCE_TYPE", lambda v: bool(int(v) & FENCE_TYPE_POLYGON),
+                       lambda v: float(int(v) | FENCE_TYPE_POLYGON),
+                       "fence types bitmask: 4 selects the polygons (1 max altitude, 2 circle, 8 min altitude)"),
+            FenceParam("FENCE_ACTION", lambda v: int(v) != 0, lambda v: 1.0,
+                       "the fence breach action: " + ", ".join(f"{k} {n}" for k, n in FENCE_ACTIONS.items())),
+            FenceParam("FENCE_ENABLE", lambda v: int(v) == 1, lambda v: 1.0, "the fence on (1) or off (0)"),
         )

@@ -31,6 +31,17 @@ class FailsafeRule:
 
 
 @dataclass(frozen=True)
+class FenceParam:
+    """A parameter the uploaded fence needs to be enforced: `ok(value)` says whether it is;
+    `fix(value)` is what the companion writes when not (autopilot_bridge.fence.enable)."""
+
+    name: str
+    ok: Callable[[float], bool]
+    fix: Callable[[float], float]
+    why: str
+
+
+@dataclass(frozen=True)
 class Stream:
     """A message the companion needs, at the rate it needs it (SET_MESSAGE_INTERVAL)."""
 
@@ -100,6 +111,10 @@ class Dialect(ABC):
     @abstractmethod
     def failsafe_rules(self, companion_sysid: int) -> tuple[FailsafeRule, ...]:
         """The parameters that decide what the vehicle does when this companion dies."""
+
+    def fence_params(self) -> tuple[FenceParam, ...]:
+        """The parameters that make an uploaded polygon fence enforced, in the order to set them."""
+        return ()
 
     def param_value(self, value: float, param_type: int) -> float:
         """PARAM_VALUE.param_value -> the parameter's value."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from . import px4_modes
-from .base import Dialect, FailsafeRule
+from .base import Dialect, FailsafeRule, FenceParam
 
 #: COM_OBL_RC_ACT values after which a vehicle without its companion comes down: 3 Return,
 #: 4 Land; 0-2 (Position, Altitude, Stabilized) fall back to Return without RC (measured on
@@ -20,6 +20,8 @@ from .base import Dialect, FailsafeRule
 #: 5 Hold hovers until the battery failsafe; 6 Terminate and 7 Disarm drop it from the sky.
 OBL_SAFE = (0, 1, 2, 3, 4)
 PREARM = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+#: GF_ACTION (geofence_params.yaml): what a fence breach does; 0 and 1 do nothing to the vehicle
+GF_ACTIONS = {0: "None", 1: "Warning", 2: "Hold", 3: "Return", 4: "Terminate", 5: "Land"}
 OBL_NAMES = {0: "Position", 1: "Altitude", 2: "Stabilized", 3: "Return", 4: "Land", 5: "Hold",
              6: "Terminate", 7: "Disarm"}
 
@@ -63,3 +65,9 @@ class PX4(Dialect):
             FailsafeRule("RTL_LAND_DELAY", lambda v: v >= 0, 0.0,
                          "Return's delay before landing (-1: it loiters over home for ever)", default=0.0),
         )
+
+    def fence_params(self) -> tuple[FenceParam, ...]:
+        """PX4 enforces every uploaded polygon at once; GF_ACTION says what a breach does (0 None
+        and 1 Warning leave the vehicle flying out: set to 2 Hold, PX4's default)."""
+        return (FenceParam("GF_ACTION", lambda v: int(v) in (2, 3, 4, 5), lambda v: 2.0,
+                           "the fence breach action: " + ", ".join(f"{k} {n}" for k, n in GF_ACTIONS.items())),)

@@ -69,6 +69,10 @@ def arm_disarm(v: Host, c: Command) -> Outcome:
         if v.fix is None and not force:
             v.statustext("Arming denied: no GPS fix", M.MAV_SEVERITY_CRITICAL)
             return M.MAV_RESULT_TEMPORARILY_REJECTED
+        if v.fences.breached and not force:  # GeofenceChecks: outside the polygon fence
+            v.statustext("Geofence: approaching or outside geofence", M.MAV_SEVERITY_CRITICAL)
+            v.statustext("Arming denied: Resolve system health failures first\t", M.MAV_SEVERITY_CRITICAL)
+            return M.MAV_RESULT_TEMPORARILY_REJECTED
         return M.MAV_RESULT_ACCEPTED if v.arm() else M.MAV_RESULT_DENIED
     if v.model.disarm(force=force):
         return M.MAV_RESULT_ACCEPTED

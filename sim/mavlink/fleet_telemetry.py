@@ -100,7 +100,7 @@ class Gathered:
             home.append(_geo(v))
             mode = v.mode
             fix = v.fix
-            flags.append((mode.startswith("AUTO"), fix is not None, v._fence_hold, "battery" not in v.failures,
+            flags.append((mode.startswith("AUTO"), fix is not None, v._fence_hold or v.fences.breached, "battery" not in v.failures,
                           _custom_mode(mode)))
             fixes.append(fix)
             if not arrays:

@@ -19,6 +19,7 @@ from sim.vehicle.gps import GpsFix, GpsModel
 from sim.vehicle.model import FlightModel
 
 if TYPE_CHECKING:  # type names only: neither module imports this one
+    from .fence_protocol import FenceStore
     from .mission import MissionStore
     from .params import ParamStore
 
@@ -31,6 +32,7 @@ class Host(Protocol):
     gps: GpsModel
     params: ParamStore
     mission: MissionStore
+    fences: FenceStore  # the polygon/circle fence uploaded (fence_protocol.py)
     camera: Callable[[np.ndarray, float], np.ndarray] | None
     fix: GpsFix | None
     mode: str
@@ -92,5 +94,7 @@ class Host(Protocol):
     def heard_heartbeat(self, msg: mavlink.MAVLink_message) -> None: ...
 
     def _check_failsafes(self) -> None: ...
+
+    def _failsafe(self, what: str, mode: str, severity: int = ...) -> None: ...
 
     def _fly(self) -> None: ...

@@ -1,6 +1,7 @@
 """The MAVLink mission protocol from the vehicle's side: upload (COUNT -> REQUEST_INT... ->
 ACK), download (REQUEST_LIST -> COUNT, REQUEST_INT -> ITEM_INT), clear and set-current.
-Only the plain mission type is stored; fence and rally plans are answered honestly as
+The plain mission type is stored here; fence transfers go to the dialect's fence protocol
+(fence_protocol.py) when the vehicle has one; rally plans are answered honestly as
 unsupported (upload) or empty (download). Re-requests run on wall-clock time: the ground
 station answers in its time, not the simulation's (which may run hundreds of times faster)."""
 
@@ -121,6 +122,8 @@ class MissionProtocol:
         self.last_request_t = 0.0
         self.retries = 0
         self.completed: tuple[tuple[int, int], int] | None = None  # (partner, count) of the last upload
+        #: MAV_MISSION_TYPE_FENCE transfers (fence_protocol.py; None: answered as unsupported)
+        self.fences = None
 
     HANDLES = frozenset({"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
                          "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
@@ -128,6 +131,12 @@ class MissionProtocol:
 
     def handle(self, msg: mavlink.MAVLink_message) -> None:
         kind = msg.get_type()
+        if self.fences is not None and kind != "MISSION_SET_CURRENT":
+            mtype = _mission_type(msg)
+            if mtype == mavlink.MAV_MISSION_TYPE_FENCE:
+                return self.fences.handle(msg)
+            if kind == "MISSION_CLEAR_ALL" and mtype == mavlink.MAV_MISSION_TYPE_ALL:
+                self.fences.clear()  # and the mission, below, which ACKs once
         if kind == "MISSION_COUNT":
             self._on_count(msg)
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
@@ -149,6 +158,7 @@ class MissionProtocol:
                 self.host.mission_changed(cleared=False)
             self.host.send_mission_current()
         # MISSION_ACK ends a download: nothing to do
+        return None
 
     def _ack(self, msg: mavlink.MAVLink_message, result: int, mission_type: int = 0) -> None:
         self.host.send(self.host.mav.mission_ack_encode(msg.get_srcSystem(), msg.get_srcComponent(), result,
@@ -228,6 +238,8 @@ class MissionProtocol:
 
     def poll(self) -> None:
         """Ask again for a missing item, or give the upload up."""
+        if self.fences is not None:
+            self.fences.poll()
         inc = self.incoming
         if inc is None or self.clock() - self.last_request_t < self.RETRY_S:
             return

@@ -37,6 +37,9 @@ def default_params() -> dict[str, Param]:
                                 "land (our vehicle lands after its return whatever it says)"),
         "GF_MAX_HOR_DIST": Param(100.0, 1.0, 10000.0, "geofence: max horizontal distance from home (m)"),
         "GF_MAX_VER_DIST": Param(30.0, 1.0, 1000.0, "geofence: max altitude above home (m)"),
+        "GF_ACTION": Param(2.0, 0.0, 5.0, "polygon/circle fence breach action: 0 none, 1 warning, 2 Hold, 3 Return, "
+                           "4 Terminate, 5 Land (the cylinder round home always holds inside)",
+                           values=(0, 1, 2, 3, 4, 5)),
         "COM_OF_LOSS_T": Param(1.0, 0.1, 60.0, "offboard setpoint timeout (s)"),
         "COM_RC_LOSS_T": Param(0.5, 0.1, 35.0, "manual control (MANUAL_CONTROL) timeout in POSCTL (s)"),
         "COM_FAIL_ACT_T": Param(5.0, 0.0, 25.0, "hold this long (s) before a failsafe's action (offboard loss)"),

@@ -19,7 +19,7 @@ is woken for a full tick by:
 - its battery about to cross the next failsafe threshold (the tick that crosses is full);
 - its position estimate leaving the geofence, or reaching its take-off height.
 Modes that act on every tick (mission, return, position control), velocity control, a geofence
-hold, an offboard-loss hold, a mission upload, queued frames, injected failures and a vehicle on
+hold, a polygon fence to enforce, an offboard-loss hold, a mission or fence upload, queued frames, injected failures and a vehicle on
 another clock than the fleet's are never quiet. tests/sim/mavlink/test_quiet.py flies a fleet
 both ways and compares every vehicle's state, battery, mode, failsafes and datagrams tick by tick.
 
@@ -73,7 +73,7 @@ class QuietVehicle:
         s = self.model.state
         if (self.mode not in QUIET_MODES or self.fix is None or self.failures or self._velocity_control
                 or self._fence_hold or self._obl_since is not None or self.missions.incoming is not None
-                or self.battery.failed):
+                or self.battery.failed or self.fences.zones or self._fence_transfer()):
             return None
         p = self.params
         # a GPS fix or telemetry due on a quiet tick is taken or sent by it (QuietFleet.tick);
@@ -94,6 +94,11 @@ class QuietVehicle:
         takeoff_z = float(self._target[2]) if self.mode == "AUTO.TAKEOFF" and self._target is not None else math.nan
         return QuietPlan(until, until_wall, s.armed, s.landed, floor, p["UAVS_BAT_ENDUR_S"],
                          p["SIM_BAT_MIN_PCT"] / 100.0, p["GF_MAX_HOR_DIST"], p["GF_MAX_VER_DIST"], takeoff_z)
+
+    def _fence_transfer(self) -> bool:
+        """A fence upload under way (its re-requests run in the full tick)."""
+        fences = self.missions.fences
+        return fences is not None and fences.incoming is not None
 
 
 class QuietFleet:

@@ -95,7 +95,7 @@ class Streams:
 
     def snapshot(self) -> Snapshot:
         return Snapshot(self.t, self.model.state, self.estimate(), self.home, self.fix, self.mode, self.sysid,
-                        fence_breached=self._fence_hold, battery_ok="battery" not in self.failures)
+                        fence_breached=self._fence_hold or self.fences.breached, battery_ok="battery" not in self.failures)
 
     def send_message(self, msg_id: int, snap: Snapshot | None = None) -> bool:
         """Send one message now (stream tick or REQUEST_MESSAGE); False if there is none to send.

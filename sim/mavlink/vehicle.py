@@ -34,6 +34,7 @@ from .battery import Battery
 from .dialects import Dialect
 from .dialects.px4 import PX4
 from .failsafe import Failsafes
+from .fence_protocol import FenceStore
 from .flying import Flying
 from .geofence import Geofence
 from .incoming import Incoming
@@ -89,6 +90,8 @@ class MavlinkVehicle(Failsafes, Flying, Streams, Incoming, QuietVehicle):
         self.params = self.dialect.param_store(signing, lambda: self.model.state.armed)
         self.mission = MissionStore()
         self.missions = MissionProtocol(self, self.mission, clock)
+        self.fences = FenceStore()  # polygon and circle fences (MAV_MISSION_TYPE_FENCE)
+        self.missions.fences = self.dialect.fence_protocol(self, clock)
         self.mode = self.dialect.initial_mode
         self.rates = self.dialect.default_rates()
         self._next_due = {k: 0.0 for k in self.rates}

@@ -71,6 +71,11 @@ class Dialect:
         """Every tick, after the battery: failsafes, then the flying of the mode."""
         raise NotImplementedError
 
+    def fence_protocol(self, v: Any, clock: Callable[[], float]) -> Any:
+        """The family's MAV_MISSION_TYPE_FENCE protocol (fence_protocol.py) for vehicle v;
+        None: fence uploads are answered as unsupported."""
+        return None
+
 
 def make_dialect(name: str, **options: Any) -> Dialect:
     """The dialect called `name` (px4 | ardupilot), built with its options."""

@@ -24,6 +24,15 @@ lists what differs from the real autopilot.
   SYSID_MYGCS (255), and only once that system has been heard.
 - Streams: HEARTBEAT only, until asked (SRn_ rates default 0): SET_MESSAGE_INTERVAL per
   message, REQUEST_DATA_STREAM per stream group (GCS_MAVLINK::handle_request_data_stream).
+- The polygon fence (fence_protocol.ArduPilotFenceProtocol, polyfence.py): enforced when
+  FENCE_ENABLE is 1 and FENCE_TYPE has bit 2 (4, polygons; default 7), checked at 25 Hz
+  (Copter::fence_check's scheduler rate) on the position estimate; a new breach in the air says
+  "Fence Breached" and does FENCE_ACTION (Copter::fence_check: 0 report only, 1 RTL or Land (the
+  default), 2 Land, 3 SmartRTL or RTL or Land, 4 Brake or Land, 5 SmartRTL or Land; SmartRTL is
+  not emulated, its fallback is flown); breached on the ground, it disarms. GUIDED targets and
+  repositions outside are refused (AC_Fence::check_destination_within_fence); arming outside is
+  "Arm: vehicle outside fence" (AC_Fence::pre_arm_check). The cylinder (FENCE_RADIUS,
+  FENCE_ALT_MAX) stays always on, whatever FENCE_ENABLE says, as before.
 """
 
 from __future__ import annotations
@@ -36,11 +45,14 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as apm
 from pymavlink.dialects.v20 import common as mavlink
 
+from sim.vehicle.geo import to_e7
 from sim.vehicle.gps import GpsFix
 
 from ..commands import RELATIVE_FRAMES, Command
+from ..fence_protocol import ArduPilotFenceProtocol
 from ..host import Host
 from ..params import Param, ParamStore, default_params
+from ..polyfence import ardupilot_breached
 from . import Dialect
 from .ardupilot_commands import execute
 from .ardupilot_modes import (
@@ -65,6 +77,10 @@ TIMESYNC_PERIOD_S = 10.0  # GCS_MAVLINK::update_send: a TIMESYNC request every 1
 BRAKE_TIMEOUT_S = 2.5
 ATTITUDE_FRACTION = 0.6  # of ekf_delay_s: when the attitude is ready (25 of 41 s in the real SITL)  # a failsafe's BRAKE turns LOITER after this (set_mode_brake_or_land_with_pause)
 PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming PREARM_DISPLAY_PERIOD
+FENCE_CHECK_S = 0.04  # Copter::fence_check runs at 25 Hz
+FENCE_TYPE_POLYGON = 4  # AC_FENCE_TYPE_POLYGON
+#: FENCE_ACTION -> FailsafeAction of Copter::fence_check (SmartRTL's fallbacks)
+FENCE_ACTIONS = {1: "RTL", 2: "LAND", 3: "RTL", 4: "BRAKE_LAND", 5: "LAND"}
 #: SET_POSITION_TARGET type-mask groups as ArduCopter reads them: a group is ignored when any of
 #: its bits is set (MAVLINK_SET_POS_TYPE_MASK_* in GCS_Mavlink.cpp)
 POS_IGNORE, VEL_IGNORE, ACC_IGNORE = 0x007, 0x038, 0x1C0
@@ -116,6 +132,14 @@ def ardupilot_params(sysid: int) -> dict[str, Param]:
         "WPNAV_RADIUS": Param(200.0, 5, 1000, "waypoint radius (cm): RTL's arrival over home"),
         "FENCE_RADIUS": Param(100.0, 1, 10000, "geofence: max horizontal distance from home (m)"),
         "FENCE_ALT_MAX": Param(30.0, 1, 1000, "geofence: max altitude above home (m)"),
+        "FENCE_ENABLE": Param(0.0, 0, 1, "fence enabled: the polygon fence is enforced only when 1 (the cylinder "
+                              "always is, here)", values=(0, 1), wire_type=INT8),
+        "FENCE_TYPE": Param(7.0, 0, 15, "fence types bitmask: 1 max altitude, 2 circle about home, 4 "
+                            "inclusion/exclusion polygons and circles, 8 min altitude", wire_type=INT8),
+        "FENCE_ACTION": Param(1.0, 0, 5, "fence breach action: 0 report only, 1 RTL or Land, 2 Land, 3 SmartRTL or "
+                              "RTL or Land (here RTL), 4 Brake or Land, 5 SmartRTL or Land (here Land)",
+                              values=tuple(range(6)), wire_type=INT8),
+        "FENCE_MARGIN": Param(2.0, 0, 100, "distance autopilots keep from the fence (m); not flown by this vehicle"),
         **{name: px4[name] for name in ("UAVS_BAT_ENDUR_S", "SIM_BAT_MIN_PCT", "UAVS_CAM_RATE", "UAVS_SIGNING")},
     }
 
@@ -292,7 +316,7 @@ class ArduPilot(Dialect):
             return  # on the ground, GUIDED flies nothing until a NAV_TAKEOFF (is_disarmed_or_landed)
         yaw = None if mask & YAW_IGNORE or not math.isfinite(msg.yaw) else float(msg.yaw)
         if not pos_ignore:  # position, or position and velocity: the position is flown
-            if not v.fence().allows(pos):  # NaN is outside every fence
+            if not v.fence().allows(pos) or not self.polygon_allows(v, pos):  # NaN is outside every fence
                 v.statustext("Geofence: guided setpoint rejected", M.MAV_SEVERITY_WARNING)
                 return
             self.takeoff_z = None
@@ -327,6 +351,8 @@ class ArduPilot(Dialect):
             v.statustext("Disarming motors", M.MAV_SEVERITY_INFO)
         self.was_armed = s.armed
         self._gcs_failsafe_check(v)
+        if v.fences.zones or v.fences.breached:
+            self.check_fence(v)
         if not s.armed:
             self.ground_since = None
             if not self.position_ok(v.t, v.fix) and v.t - self.prearm_shown_t > PREARM_DISPLAY_PERIOD_S:
@@ -350,6 +376,52 @@ class ArduPilot(Dialect):
             self._fly_rtl(v)
         if v.mode not in ("RTL", "LAND") and not v.fence().allows(v.estimate()):
             self._failsafe(v, "fence breach: RTL", "RTL")
+
+    def fence_protocol(self, v, clock) -> ArduPilotFenceProtocol:
+        return ArduPilotFenceProtocol(v, clock)
+
+    def polygon_fence_on(self, v: Host) -> bool:
+        """AC_Fence: enabled, polygons selected, and some uploaded."""
+        return bool(v.fences.zones) and int(v.params["FENCE_ENABLE"]) == 1 and bool(
+            int(v.params["FENCE_TYPE"]) & FENCE_TYPE_POLYGON)
+
+    def polygon_allows(self, v: Host, ned: np.ndarray) -> bool:
+        """check_destination_within_fence's polygon part, for a target in local NED."""
+        if not self.polygon_fence_on(v):
+            return True
+        if not np.all(np.isfinite(ned)):
+            return False
+        lat, lon, _ = v.home.ned_to_geodetic(ned)
+        return not ardupilot_breached(v.fences.zones, to_e7(lat), to_e7(lon))
+
+    def check_fence(self, v: Host) -> None:
+        """AC_Fence::check_fence_polygon and Copter::fence_check (edge-triggered: a breach acts
+        once, until the vehicle is back inside)."""
+        f = v.fences
+        if not self.polygon_fence_on(v):
+            f.breached = False  # clear_breach(~_enabled_fences)
+            return
+        if v.t + 1e-9 < f.next_check_t:
+            return
+        f.next_check_t = v.t + FENCE_CHECK_S
+        was, f.breached = f.breached, not self.polygon_allows(v, v.estimate())
+        s = v.model.state
+        if not f.breached or was or not s.armed:
+            return
+        if not s.landed:
+            v.statustext("Fence Breached", M.MAV_SEVERITY_NOTICE)
+        action = int(v.params["FENCE_ACTION"])
+        if action == 0:
+            return  # AC_FENCE_ACTION_REPORT_ONLY
+        if s.landed:
+            v.failsafe_log.append((v.t, "fence breach on the ground: disarm"))
+            v.model.disarm(force=True)
+            return
+        mode = self._failsafe_mode(v, FENCE_ACTIONS.get(action, "RTL"))
+        if mode is not None:
+            self._failsafe(v, f"fence breach, FENCE_ACTION={action}: {mode}", mode)
+            if mode == "BRAKE":
+                self.brake_until = v.t + BRAKE_TIMEOUT_S
 
     def _ekf_ready(self, v: Host) -> None:
         """The EKF takes GPS (AP_NavEKF3_Control: "EKF3 IMU%u is using GPS", one per IMU lane)

@@ -37,6 +37,8 @@ def arm_disarm(d: CopterState, v: Host, c: Command) -> Outcome:
                 failed.append("FS_GCS_ENABLE=2 removed, see FS_OPTIONS")  # parameter_checks
             if d.gcs_failsafe:
                 failed.append("GCS failsafe on")  # gcs_failsafe_check
+            if d.polygon_fence_on(v) and v.fences.breached:  # fence_checks: AC_Fence::pre_arm_check
+                failed.append("vehicle outside fence")
             if v.mode in REQUIRES_GPS and not d.position_ok(v.t, v.fix):  # mandatory_gps_checks
                 failed.append("Need Position Estimate")
             elif not d.attitude_ok(v.t):  # the inertial sensors and the EKF's attitude settling
@@ -113,7 +115,7 @@ def do_reposition(d: CopterState, v: Host, c: Command) -> Outcome:
         return M.MAV_RESULT_DENIED  # check_latlng, location_from_command_t, Location::sanitize
     ne = v.home.geodetic_to_ned(lat, lon, v.home.alt_m)
     ned = np.array([ne[0], ne[1], -c.rel_alt(v.home.alt_m)])
-    if not v.fence().allows(ned):
+    if not v.fence().allows(ned) or not d.polygon_allows(v, ned):
         v.statustext("Geofence: reposition rejected", M.MAV_SEVERITY_WARNING)
         return M.MAV_RESULT_FAILED
     if v.mode != "GUIDED" and d.change_mode(v, MODES["GUIDED"]) != M.MAV_RESULT_ACCEPTED:

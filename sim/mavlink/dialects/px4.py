@@ -1,6 +1,14 @@
 """PX4 SITL as the vehicle spoke it before dialects: the default, unchanged. Its commands are
 commands.py, its flying flying.py, its failsafes failsafe.py, its setpoints incoming.py, its
-telemetry telemetry.py; this module routes the dialect's calls to them."""
+telemetry telemetry.py; this module routes the dialect's calls to them.
+
+Its polygon fence (fence_protocol.Px4FenceProtocol, polyfence.py) is enforced as PX4's
+navigator and commander do (Navigator::geofence_breach_check, Failsafe::fromGfActParam):
+checked every 200 ms on the position estimate, a new breach in the air does GF_ACTION (0 none,
+1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land; default 2); PX4 no longer predicts ahead of
+the vehicle (GF_PREDICT is gone), so Hold stops it where the breach was seen, just outside.
+Setpoints are not refused by the polygon (PX4 checks only repositions against it).
+"""
 
 from __future__ import annotations
 
@@ -10,13 +18,19 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from .. import commands
 from ..commands import ATTITUDE_MODES, Command
+from ..fence_protocol import Px4FenceProtocol
 from ..host import Host
 from ..modes import px4_mode_name
 from ..params import ParamStore
+from ..polyfence import px4_allows
 from ..telemetry import BUILDERS, DEFAULT_RATES
 from . import Dialect
 
 M = mavlink
+GEOFENCE_CHECK_S = 0.2  # Navigator::geofence_breach_check's GEOFENCE_CHECK_INTERVAL_US
+#: GF_ACTION -> the mode the failsafe enters (None: no mode change)
+GF_MODES = {2: "AUTO.LOITER", 3: "AUTO.RTL", 5: "AUTO.LAND"}
+GF_NAMES = {0: "None", 1: "Warning", 2: "Hold", 3: "Return", 4: "Terminate", 5: "Land"}
 
 
 class PX4(Dialect):
@@ -62,4 +76,35 @@ class PX4(Dialect):
 
     def step(self, v: Host) -> None:
         v._check_failsafes()
+        if v.fences.zones:
+            self.check_fence(v)
         v._fly()
+
+    def fence_protocol(self, v, clock) -> Px4FenceProtocol:
+        return Px4FenceProtocol(v, clock)
+
+    def check_fence(self, v: Host) -> None:
+        """Navigator::geofence_breach_check on the polygon and circle zones (the cylinder round
+        home stays flying.py's), then the commander's failsafe on a new breach (edge-triggered:
+        cleared by a mode change, as ClearCondition::OnModeChangeOrDisarm)."""
+        f = v.fences
+        if v.t + 1e-9 < f.next_check_t or v.fix is None:
+            return
+        f.next_check_t = v.t + GEOFENCE_CHECK_S
+        action = int(v.params["GF_ACTION"])
+        lat, lon, _ = v.home.ned_to_geodetic(v.estimate())
+        breached = action != 0 and not px4_allows(f.zones, lat, lon)  # GF_ACTION_NONE: no breach flag
+        was, f.breached = f.breached, breached
+        s = v.model.state
+        if not breached or was or not s.armed or s.landed:
+            return
+        v.statustext("Geofence: approaching or outside geofence", M.MAV_SEVERITY_CRITICAL)
+        if action == 1:
+            return  # Warning
+        what = f"geofence breach, GF_ACTION {action} ({GF_NAMES.get(action, action)})"
+        if action == 4:  # Terminate: the motors stop
+            v.failsafe_log.append((v.t, what))
+            v.statustext("Failsafe activated: flight termination", M.MAV_SEVERITY_EMERGENCY)
+            v.model.disarm(force=True)
+            return
+        v._failsafe(what, GF_MODES.get(action, "AUTO.LOITER"))

@@ -36,7 +36,8 @@ def _vehicles(k: int, seed: int) -> list[SimpleNamespace]:
         out.append(SimpleNamespace(t=float(rng.uniform(0, 5000)), model=SimpleNamespace(state=s), home=home,
                                    gps=SimpleNamespace(estimate_error=rng.normal(0, 1, 3)), fix=fix,
                                    mode=str(rng.choice(MODES)), _fence_hold=bool(rng.random() < 0.2),
-                                   failures=set() if rng.random() < 0.8 else {"battery"}))
+                                   failures=set() if rng.random() < 0.8 else {"battery"},
+                                   fences=SimpleNamespace(breached=False)))  # no polygon fence
     return out
 
 
