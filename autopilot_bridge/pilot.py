@@ -222,7 +222,8 @@ class Pilot:
                 raise LinkError(f"take-off: not above {self.spec.altitude_m / 2:.1f} m by {late:.1f} s (simulated): "
                                 f"{self.search_d + self.spec.altitude_m - d:.2f} m over home (local down {d:.2f}, "
                                 f"home at {self.search_d + self.spec.altitude_m:.2f}), mode {link.telemetry.mode}, "
-                                f"{'armed' if link.telemetry.armed else 'disarmed'}")
+                                f"{'armed' if link.telemetry.armed else 'disarmed'}; it said: "
+                                f"{' / '.join(link.telemetry.statustext[-4:]) or 'nothing'}")
         else:
             link.wait_for(lambda: self.climbed(self.spec.altitude_m - 0.4), timeout,
                           f"take-off to {self.spec.altitude_m} m")
