@@ -156,3 +156,37 @@ def write_altitude(doc: dict[str, Any], out: Path, note: str = "", command: str 
     with atomic_open(md, "w") as f:
         f.write("\n".join(lines))
     return [js, md]
+
+
+PROVISIONAL_NOTE = ("Provisional table (the issue 27 brief's example, written to a temporary file): the lead "
+                    "re-measures with the table measured on the SITL's camera (sim/gridworld/data/detection.json).")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """`python -m policy.evaluation.altitude --detection TABLE.json [--episodes N] [--seed S]
+    [--workers W] [--out results/altitude] [--note TEXT]`: the table of issue 27's measurement
+    (a module entry point like benchmarks/: the measurement is not a user command)."""
+    import argparse
+    import shlex
+    import sys
+
+    ap = argparse.ArgumentParser(prog="python -m policy.evaluation.altitude", description=main.__doc__)
+    ap.add_argument("--detection", type=Path, required=True, help="detection table JSON")
+    ap.add_argument("--levels", type=int, default=3)
+    ap.add_argument("--episodes", type=int, default=2000)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=Path("results/altitude"))
+    ap.add_argument("--note", default=PROVISIONAL_NOTE)
+    ap.add_argument("--setting", action="append", help="settings to run (default: all)")
+    a = ap.parse_args(argv)
+    table = DetectionTable.load(a.detection)
+    doc = run_altitude(table, a.levels, a.episodes, a.seed, settings=tuple(a.setting) if a.setting else None,
+                       workers=a.workers)
+    cmd = "PYTHONPATH=. python -m policy.evaluation.altitude " + shlex.join(sys.argv[1:] if argv is None else argv)
+    for p in write_altitude(doc, a.out, note=a.note, command=cmd):
+        print(p)
+
+
+if __name__ == "__main__":
+    main()

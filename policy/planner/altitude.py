@@ -57,6 +57,9 @@ class AltitudeParams:
     #: weight of the mass in the ring of two cells beyond each footprint (steers towards
     #: regions not yet looked at rather than single leftover cells)
     outer: float = 0.0
+    #: the climb back costs in full while return_scale or more targets are believed unsighted,
+    #: less as fewer are (at the end there is nothing to climb back for)
+    return_scale: float = 1.0
     #: the gain counts p_eff = 1 - (1 - p_d) ** looks: a cell in a footprint is looked at
     #: again from the next cells along the way, so the far rings' low p_d undervalues them
     looks: float = 1.0
@@ -66,6 +69,8 @@ class AltitudeParams:
                   "edge", "outer", "looks"):
             if not getattr(self, k) >= 0:
                 raise ValueError(f"AltitudeParams.{k} must be >= 0 (got {getattr(self, k)})")
+        if not self.return_scale > 0:
+            raise ValueError(f"AltitudeParams.return_scale must be > 0 (got {self.return_scale})")
 
 
 def ring_gain(mass: np.ndarray, p: np.ndarray, window) -> np.ndarray:
@@ -118,7 +123,8 @@ class AltitudeRule:
             close = close + prm.cluster * (self.window(close, 2) - close)
         d = (np.abs(self.xs[None] - pos[:, 0, None, None]) + np.abs(self.ys[None] - pos[:, 1, None, None]))
         d = d.astype(np.float32)
-        left = np.minimum(belief.unsighted if not cfg.moving else belief.remaining, 1.0).astype(np.float32)
+        left = np.minimum((belief.unsighted if not cfg.moving else belief.remaining) / prm.return_scale,
+                          1.0).astype(np.float32)
         out = np.empty((self.n, cfg.levels) + d.shape[1:], np.float32)
         self._gains = []
         for lv in range(1, cfg.levels + 1):
