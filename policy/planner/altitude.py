@@ -57,6 +57,9 @@ class AltitudeParams:
     #: weight of the mass in the ring of two cells beyond each footprint (steers towards
     #: regions not yet looked at rather than single leftover cells)
     outer: float = 0.0
+    #: a cell believed occupied with more than this is a target to recover; below it (and
+    #: above 0.5) a sighting to confirm by looking again
+    confirm: float = 0.5
     #: the climb back costs in full while return_scale or more targets are believed unsighted,
     #: less as fewer are (at the end there is nothing to climb back for)
     return_scale: float = 1.0
@@ -66,7 +69,7 @@ class AltitudeParams:
 
     def __post_init__(self) -> None:
         for k in ("pickup", "travel_offset", "return_cost", "cluster", "tour_below", "tie_reveal", "stick",
-                  "edge", "outer", "looks"):
+                  "edge", "outer", "looks", "confirm"):
             if not getattr(self, k) >= 0:
                 raise ValueError(f"AltitudeParams.{k} must be >= 0 (got {getattr(self, k)})")
         if not self.return_scale > 0:
@@ -116,7 +119,9 @@ class AltitudeRule:
             close = u
             diffuse = u
         else:
-            close = belief.sighted.astype(np.float32)
+            # a sighting below `confirm` is still a place to look (from above: cheap), not yet one
+            # to descend to: a false alarm from level 3 is believed at ~0.7 until a look refutes it
+            close = np.where(u > max(prm.confirm, 0.5), u, np.float32(0.0))
             diffuse = np.maximum(u - close, 0.0)
         diffuse = diffuse * self.cell_weight
         if prm.cluster > 0 and not cfg.moving:
