@@ -29,6 +29,11 @@ from sim.gridworld import GridConfig
 
 #: cells at or above this occupancy (less a hair) take no more mass when the belief rescales
 _FULL = 1.0 - 1e-6
+#: the occupancy a sighted cell believed empty starts its update from (look)
+REVIVE = 1e-4
+#: share of the unfound total the free cells keep when the cells believed occupied seem to
+#: hold it all (one of them may be a false alarm): the mass never vanishes from the rest
+LEAK = 1e-3
 
 
 class SoftView:
@@ -50,6 +55,8 @@ class SoftView:
         p, fa = table.ring_table(cfg.levels)
         self.p = np.array([[0.0] * (self.radius + 1)] + p)  # (L + 1, R + 1), row 0 unused
         self.fa = np.array([0.0] + fa)
+        #: with false alarms a cell believed occupied may be empty: the rest keeps some mass
+        self.leak = LEAK if any(v > 0 for v in fa) else 0.0
 
     @property
     def width(self) -> int:
@@ -72,9 +79,11 @@ class SoftView:
 
 def look(u: np.ndarray, f: np.ndarray, detected: np.ndarray, p: np.ndarray,
          fa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The Bayes update of the cells looked at (flat arrays): new (u, f). An event the model
-    rules out (a miss where p = 1 and the cell is surely occupied, a detection of a surely
-    empty cell without false alarms) leaves the cell as it was."""
+    """The Bayes update of the cells looked at (flat arrays): new (u, f). A detection of a
+    cell believed empty lifts it from REVIVE: the belief's zeros can be approximations (the
+    rescale's), and a sighting without false alarms says a target is there. A miss the model
+    rules out (p = 1 on a surely occupied cell) leaves the cell as it was."""
+    u = np.where(detected & (u + f < REVIVE), np.maximum(u, REVIVE), u)
     o = np.clip(u.astype(np.float64) + f, 0.0, 1.0)
     like_occ = np.where(detected, p, 1.0 - p)
     like_empty = np.where(detected, fa, 1.0 - fa)
@@ -85,18 +94,19 @@ def look(u: np.ndarray, f: np.ndarray, detected: np.ndarray, p: np.ndarray,
     return u * scale, f * scale
 
 
-def fill(a: np.ndarray, total: np.ndarray, cap: np.ndarray, rounds: int = 6) -> np.ndarray:
+def fill(a: np.ndarray, total: np.ndarray, cap: np.ndarray, rounds: int = 6, leak: float = 0.0) -> np.ndarray:
     """a (n, h, w) >= 0 rescaled per episode so that it sums to total (n,), no cell above cap
     (n, h, w): the free cells are scaled alike, those that reach the cap stay there (a few
-    rounds of water-filling). A row with no mass is left empty; a total above what the caps
-    hold fills them."""
+    rounds of water-filling), keeping at least `leak` of the total in the free cells (LEAK
+    where false alarms exist: a cell believed occupied may be one). A row with no free mass is
+    left as it is; a total above what the caps hold fills them."""
     a = np.minimum(a.astype(np.float64), cap)
     total = np.asarray(total, np.float64)[:, None, None]
     for _ in range(rounds):
         full = a >= cap * _FULL
         fixed = np.where(full, a, 0.0).sum(axis=(1, 2), keepdims=True)
         free = np.where(full, 0.0, a).sum(axis=(1, 2), keepdims=True)
-        k = np.where(free > 1e-12, np.maximum(total - fixed, 0.0) / np.maximum(free, 1e-12), 1.0)
+        k = np.where(free > 1e-12, np.maximum(total - fixed, leak * total) / np.maximum(free, 1e-12), 1.0)
         if np.all(np.abs(k - 1.0) < 1e-9):
             break
         a = np.where(full, a, np.minimum(a * k, cap))

@@ -517,7 +517,7 @@ class BeliefState:
         self.n_found = np.minimum(self.n_found + now, cap)
         if cfg.moving:
             found = fill(found, self.n_found, np.ones_like(found))
-        sighted = fill(sighted, self.remaining, np.maximum(1.0 - found, 0.0))
+        sighted = fill(sighted, self.remaining, np.maximum(1.0 - found, 0.0), leak=sv.leak)
         self._sighted, self.found = sighted.astype(np.float32), found.astype(np.float32)
         self.visited[here] = 1.0
         self.seen[cells] = 1.0
