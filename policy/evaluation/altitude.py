@@ -46,6 +46,7 @@ class AltitudeSetting:
 
 
 SETTINGS: tuple[AltitudeSetting, ...] = (
+    AltitudeSetting("random 10x10/5", 10, 10, 5),
     AltitudeSetting("random 20x20/10", 20, 20, 10),
     AltitudeSetting("random 30x30/15, t_e 1000", 30, 30, 15, t_e=1000),
 )
