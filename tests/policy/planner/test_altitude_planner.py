@@ -30,3 +30,14 @@ def test_fixed_height_baselines_fly_with_levels():
     assert (mower["found"] == 5).mean() >= 0.9 and mower["moves_above_1"].sum() > 0
     ns = run_rows(make_policy("ns", cfg), cfg, 16, 8)
     assert ns["moves_above_1"].sum() == 0 and ns["found"].mean() > 3
+
+
+def test_top_level_follows_the_field_and_the_table():
+    from policy.planner.altitude import top_level
+
+    perfect = DetectionTable.perfect(3)
+    assert top_level(GridConfig(levels=3, detection=perfect)) == 2  # 7 x 7 does not fit twice in 10
+    assert top_level(GridConfig(width=20, height=20, n_targets=10, levels=3, detection=perfect)) == 3
+    # the provisional level 3 sees 0.56 of its footprint on average: not worth the climb
+    assert top_level(GridConfig(width=20, height=20, n_targets=10, levels=3, detection=TABLE)) == 2
+    assert top_level(GridConfig(width=20, height=20, n_targets=10, levels=3, detection=TABLE), max_level=3) == 3
