@@ -10,7 +10,7 @@ import typer
 
 from sim.gridworld import GridConfig
 
-from .options import with_grid
+from .options import DETECTION, LEVELS, T_E, with_grid, with_levels
 
 
 def register(app: typer.Typer) -> None:
@@ -27,6 +27,9 @@ def register(app: typer.Typer) -> None:
         ),
         out: Path | None = typer.Option(None, "--out", help="Write results.json, table.md and plots here."),
         as_json: bool = typer.Option(False, "--json", help="Print only the JSON document on stdout."),
+        levels: int = LEVELS,
+        detection: Path | None = DETECTION,
+        t_e: int = T_E,
         *,
         grid: GridConfig,
     ) -> None:
@@ -44,7 +47,7 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
         if checkpoint is not None and not checkpoint.is_file():
             raise typer.BadParameter(f"no checkpoint file at {checkpoint}", param_hint="--checkpoint")
-        cfg = grid
+        cfg = with_levels(grid, levels, detection, t_e)
         try:
             doc = run_eval(policy, cfg, episodes, seed, out, progress=not as_json, checkpoint=checkpoint,
                            echo=not as_json, loop_guard=loop_guard)

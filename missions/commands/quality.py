@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from .options import DETECTION, LEVELS
+
 
 def register(app: typer.Typer) -> None:
     @app.command()
@@ -23,6 +25,9 @@ def register(app: typer.Typer) -> None:
         reuse: Path | None = typer.Option(
             None, "--reuse", help="A previous search_quality.json: keep its measured cells, run only the others."),
         refresh: list[str] | None = typer.Option(None, "--refresh", help="With --reuse: rerun these rows anyway."),
+        levels: int = LEVELS,
+        detection: Path | None = DETECTION,
+        t_e: int | None = typer.Option(None, "--t-e", min=1, help="Move limit t_e of every setting (default 300)."),
     ) -> None:
         """Search quality table: mean moves, ratio to oracle, p90, all found %, (g)."""
         from policy.evaluation.quality import (
@@ -40,6 +45,7 @@ def register(app: typer.Typer) -> None:
                 episodes=episodes, seed=seed, gps_episodes=gps_episodes, gps=gps,
                 policies=tuple(policy) if policy else tuple(POLICIES),
                 settings=tuple(setting) if setting else tuple(label for label, _ in SETTINGS),
+                levels=levels, detection=None if detection is None else str(detection), t_e=t_e,
             )
         except ValueError as e:
             raise typer.BadParameter(str(e)) from e

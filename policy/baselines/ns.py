@@ -45,6 +45,9 @@ class NaivePolicy(VisitTracking):
         self._see(obs)
         h, w = self.cfg.height, self.cfg.width
         tgt = obs.views[:, 0].astype(bool)  # (n, 3, 3), rows y-1..y+1, off-map cells never set
+        if tgt.shape[1:] != (3, 3):  # altitude levels: NS flies at level 1, its 3 x 3 is the centre
+            c = tgt.shape[1] // 2
+            tgt = tgt[:, c - 1: c + 2, c - 1: c + 2]
         ys = np.clip(obs.positions[:, 1, None, None] + _OFF[None, :, None], 0, h - 1)
         xs = np.clip(obs.positions[:, 0, None, None] + _OFF[None, None, :], 0, w - 1)
         unvisited = tgt & ~self.visited[self.rows[:, None, None], ys, xs]

@@ -69,6 +69,8 @@ import numpy as np
 
 from sim.gridworld import GridConfig
 
+from .soft import SoftView, fill, look
+
 #: the planes() channels, in order
 PLANE_NAMES: tuple[str, ...] = (
     "visited",  # P(cell visited)
@@ -97,6 +99,9 @@ SOFT_DRY = 0.02
 FAR_EPS = 0.005
 #: the floor of a view slot's likelihood (policy.belief.state.BeliefState._view_likelihood)
 VIEW_EPS = 0.02
+#: under soft evidence (altitude levels), a cell believed occupied with more than this is
+#: "sighted": a target to recover close up, not a place to look
+SIGHTED = 0.5
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
 _SLOTS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
 _SLOT_DY = np.array([dy for dy, _ in _SLOTS])
@@ -240,6 +245,15 @@ class BeliefState:
         self._uncertain = np.zeros(n, bool)
         #: condition a GPS position posterior on the view's targets too (_view_likelihood)
         self.view_evidence = view_evidence
+        #: the view is a sample of detections (altitude levels, policy.belief.soft): the whole
+        #: unfound density is tracked per cell, as for moving targets, on soft evidence
+        self.soft: SoftView | None = None
+        if not cfg.perfect_detection:
+            self.soft = SoftView(cfg)
+            self._pair = None
+            self._sighted[:] = (r * self.prior).astype(f32)
+            #: (n,) level flown at the last update
+            self.level = np.ones(n, np.int64)
         self.target = self._target()
 
     # ----------------------------------------------------------------- derived quantities
@@ -266,14 +280,17 @@ class BeliefState:
         return self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
 
     def _target(self, sighted_sum: np.ndarray | None = None) -> np.ndarray:
-        if self.cfg.moving:
+        if self.cfg.moving or self.soft is not None:
             return self._sighted.copy()
         return self._sighted + self._pool(sighted_sum)
 
     @property
     def sighted(self) -> np.ndarray:
         """(n, h, w) static: targets the view has shown that are believed not found yet
-        (moving: the whole unfound density; there is no separate never-sighted pool)."""
+        (moving: the whole unfound density; there is no separate never-sighted pool). Under soft
+        evidence (static): the cells believed more likely occupied than not (SIGHTED)."""
+        if self.soft is not None and not self.cfg.moving:
+            return np.where(self._sighted > SIGHTED, self._sighted, np.float32(0.0))
         return self._sighted
 
     @property
@@ -283,7 +300,10 @@ class BeliefState:
 
     @property
     def unsighted(self) -> np.ndarray:
-        """(n,) static: believed targets never shown by the view (0 means all are sighted)."""
+        """(n,) static: believed targets never shown by the view (0 means all are sighted);
+        under soft evidence, those not in a cell believed occupied (sighted)."""
+        if self.soft is not None and not self.cfg.moving:
+            return np.maximum(self.remaining - self.sighted.sum(axis=(1, 2), dtype=np.float64), 0.0)
         return np.maximum(self.remaining - self._sighted.sum(axis=(1, 2), dtype=np.float64), 0.0)
 
     # ----------------------------------------------------------------------- the update
@@ -331,6 +351,9 @@ class BeliefState:
     def update(self, obs) -> None:
         """Fold one decision's observation (views, positions, t, active, position_prob) in."""
         cfg = self.cfg
+        if self.soft is not None:
+            self._update_soft(obs)
+            return
         if self.n == 1 and obs.position_prob is None and self._crisp and not cfg.moving:
             self._update_one(obs)
             self._fold_far(obs)
@@ -434,6 +457,73 @@ class BeliefState:
         self._reopen_if_exhausted()
         self.target = self._target(sighted_sum if not self._reopened else None)
         self._fold_far(obs)
+
+    def _advance(self, t: np.ndarray) -> None:
+        """Time passes: ages grow, and moving targets' densities diffuse once per target move
+        (transitions s -> s + 1 with s % period == 0, s in [prev, t))."""
+        cfg = self.cfg
+        first = self.t < 0
+        prev = np.where(first, t, self.t)
+        dt = np.maximum(t - prev, 0)
+        if cfg.moving:
+            per = cfg.target_period
+            moves = (t + per - 1) // per - (prev + per - 1) // per
+            for k in range(int(moves.max(initial=0))):
+                rows = moves > k
+                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows])
+                self.found[rows] = motion_kernel(cfg, self.found[rows])
+        self.age += dt[:, None, None].astype(np.float32)
+
+    def _update_soft(self, obs) -> None:
+        """update() where the view is a sample of detections (policy.belief.soft): exact
+        positions, the level flown (obs.level; None: 1), finds from obs.found_now (the world
+        counts them; without it, the view's own cell at level 1 says it)."""
+        cfg, sv = self.cfg, self.soft
+        if obs.position_prob is not None:
+            raise ValueError("the soft-evidence belief (altitude levels) takes exact positions only")
+        views = np.asarray(obs.views)
+        k = sv.width
+        if views.ndim != 4 or views.shape[0] != self.n or views.shape[2:] != (k, k):
+            raise ValueError(f"views must be ({self.n}, C, {k}, {k}) windows for levels = {cfg.levels} "
+                             f"(got {views.shape})")
+        t = np.asarray(obs.t, dtype=np.int64)
+        self._advance(t)
+        level = getattr(obs, "level", None)
+        level = np.ones(self.n, np.int64) if level is None else np.asarray(level, np.int64).reshape(self.n)
+        if (level < 1).any() or (level > cfg.levels).any():
+            raise ValueError(f"level must be in 1..{cfg.levels} (got {level})")
+        self.level = level.copy()
+        pos = np.asarray(obs.positions, dtype=np.int64)
+        p = np.zeros_like(self.position)
+        p[self.rows, pos[:, 1], pos[:, 0]] = 1.0
+        self.position = p
+        cells, slot, pd, fa = sv.cells(pos, level)
+        detected = views[:, 0].reshape(self.n, -1)[cells[0], slot] > 0
+        u, f = look(self._sighted[cells], self.found[cells], detected, pd, fa)
+        sighted, found = self._sighted.astype(np.float64), self.found.astype(np.float64)
+        sighted[cells], found[cells] = u, f
+        low = level == 1
+        here = (self.rows[low], pos[low, 1], pos[low, 0])
+        now = getattr(obs, "found_now", None)
+        if now is None:  # the view's own cell at level 1: what it shows there is found now
+            now = np.zeros(self.n)
+            ctr = views[:, 0, k // 2, k // 2] > 0
+            now[low & ctr] = np.minimum(self._sighted[self.rows, pos[:, 1], pos[:, 0]], 1.0)[low & ctr]
+        now = np.asarray(now, np.float64).reshape(self.n)
+        sighted[here] = 0.0  # a target there would have been recovered on arrival
+        got = low & (now > 0)
+        found[self.rows[got], pos[got, 1], pos[got, 0]] = 1.0
+        cap = np.where(np.asarray(obs.active, dtype=bool), cfg.n_targets - 1, cfg.n_targets)
+        self.n_found = np.minimum(self.n_found + now, cap)
+        if cfg.moving:
+            found = fill(found, self.n_found, np.ones_like(found))
+        sighted = fill(sighted, self.remaining, np.maximum(1.0 - found, 0.0), leak=sv.leak)
+        self._sighted, self.found = sighted.astype(np.float32), found.astype(np.float32)
+        self.visited[here] = 1.0
+        self.seen[cells] = 1.0
+        self.age[cells] = 0.0
+        self.t = t.copy()
+        self.target = self._target()
 
     def _fold_far(self, obs) -> None:
         """Static targets sighted beyond the view (obs.far_targets: per sighting, its likelihood

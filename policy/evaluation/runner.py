@@ -30,6 +30,8 @@ class EvalResult:
     loops: np.ndarray | None
     #: off-map choices the world replaced by a random valid move, per episode
     replaced: np.ndarray | None = None
+    #: seconds flown per episode (sim.gridworld.FlightModel: horizontal and vertical speeds)
+    flight_s: np.ndarray | None = None
     #: a few episodes kept for plots: start cells, targets at t = 0 and trajectories
     sample_paths: list[np.ndarray] = field(default_factory=list)
     sample_targets: list[np.ndarray] = field(default_factory=list)
@@ -39,6 +41,8 @@ class EvalResult:
         cols = table1_columns(self.moves, self.optimal, self.find_moves, self.loops, self.cfg.t_e)
         if self.replaced is not None:
             cols["offmap_replaced_mean"] = float(self.replaced.mean())
+        if self.flight_s is not None:
+            cols["mean_flight_s"] = float(self.flight_s.mean())
         return cols
 
 
@@ -65,6 +69,7 @@ def evaluate(
     finds: list[np.ndarray] = []
     loops: list[np.ndarray | None] = []
     replaced: list[np.ndarray] = []
+    flight: list[np.ndarray] = []
     paths: list[np.ndarray] = []
     targets: list[np.ndarray] = []
     bar = tqdm(total=episodes, desc=f"eval {policy.name}", unit="ep", disable=not progress, leave=False)
@@ -79,6 +84,7 @@ def evaluate(
         moves.append(world.t.copy())
         finds.append(world.find_moves.copy())
         replaced.append(world.replaced.copy())
+        flight.append(world.flight_s.copy())
         loops.append(policy.loops())
         if len(paths) < keep_paths:
             traj = world.trajectories()
@@ -96,6 +102,7 @@ def evaluate(
         find_moves=np.concatenate(finds),
         loops=None if any(x is None for x in loops) else np.concatenate(loops),  # type: ignore[arg-type]
         replaced=np.concatenate(replaced),
+        flight_s=np.concatenate(flight),
         sample_paths=paths,
         sample_targets=targets,
     )

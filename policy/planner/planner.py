@@ -42,6 +42,7 @@ from ..belief import BeliefState
 from ..belief.state import weighted_rows
 from ..groundtruth.legs import step_towards
 from ..groundtruth.pt import held_karp
+from .altitude import AltitudeParams, AltitudeRule
 
 
 @dataclass(frozen=True)
@@ -131,9 +132,13 @@ def resolve_prior(prior: Any, cfg: GridConfig) -> tuple[np.ndarray | None, np.nd
 class BeliefPlanner(Policy):
     name = "belief"
 
-    def __init__(self, prior: Any = None, params: PlannerParams | None = None) -> None:
+    def __init__(self, prior: Any = None, params: PlannerParams | None = None,
+                 altitude: AltitudeParams | None = None) -> None:
+        """altitude: the weights of the rule over (cell, level) where cfg.levels > 1
+        (policy.planner.altitude); levels = 1 plans as before."""
         self.prior_spec = prior
         self.params = params or PlannerParams()
+        self.altitude = altitude or AltitudeParams()
         self._prior_cache: dict[tuple, tuple[np.ndarray | None, np.ndarray | None]] = {}
 
     def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
@@ -165,6 +170,10 @@ class BeliefPlanner(Policy):
         self.tour = np.full((n, cfg.n_targets, 2), -1, np.int64)
         self.tour_len = np.zeros(n, np.int64)
         self.in_tour = np.zeros(n, bool)
+        #: where the view is a sample of detections (altitude levels): the (cell, level) rule
+        self._alt: AltitudeRule | None = None
+        if not cfg.perfect_detection:
+            self._alt = AltitudeRule(cfg, n, self.rng, self.altitude, lambda a, r: _window(a, r, self._work))
 
     # ------------------------------------------------------------------------ the rule
     def _reveal(self) -> np.ndarray:
@@ -279,6 +288,8 @@ class BeliefPlanner(Policy):
     # ------------------------------------------------------------------------ act
     def act(self, obs: Observation) -> np.ndarray:
         self.belief.update(obs)
+        if self._alt is not None:
+            return self._alt.act(self.belief, obs)
         pos = np.asarray(obs.positions, dtype=np.int64)
         if obs.position_prob is not None:
             pos = self._where(pos)

@@ -31,6 +31,11 @@ class TorchGridWorld:
         self.off_map = off_map
         self.device = torch.device(device) if device is not None else default_device()
         cfg = episodes.cfg
+        if not cfg.perfect_detection:
+            from .config import ConfigError
+
+            raise ConfigError(f"TorchGridWorld runs the paper's world only (levels = 1, perfect detection); "
+                              f"levels = {cfg.levels} needs BatchGridWorld")
         self.cfg, self.episodes = cfg, episodes
         n, r, w, h = len(episodes), cfg.n_targets, cfg.width, cfg.height
         self.n = n
