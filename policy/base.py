@@ -37,6 +37,10 @@ class Observation:
     #: companion counts a find when a target not found before is under the camera); None = the
     #: belief infers it from the view and the map (policy.belief.BeliefState._find_events)
     found_now: np.ndarray | None = None
+    #: (n, h, w) bool searchable cells of each episode's field (sim.gridworld.masks): the
+    #: drone knows the field it searches; masked cells hold no target and cannot be entered.
+    #: None = the whole grid (every policy then behaves as before)
+    mask: np.ndarray | None = None
 
 
 def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:
@@ -49,6 +53,7 @@ def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observati
         valid=world.valid_actions(),
         t=world.t.copy(),
         active=~world.done,
+        mask=world.mask,
     )
 
 

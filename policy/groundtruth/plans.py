@@ -21,6 +21,12 @@ from .pt import held_karp
 def optimal_lengths(episodes: Episodes, seed: int | None = None) -> np.ndarray:
     """|S_GO| per episode: PT (Held-Karp) for static targets, lookahead PT for moving ones."""
     rng = None if seed is None else np.random.default_rng(seed)
+    if episodes.mask is not None:
+        if episodes.paths is not None:
+            raise ValueError("the oracle on masked fields is for static targets (moving: not yet)")
+        from .masked import held_karp_masked
+
+        return held_karp_masked(episodes.agent, episodes.targets, episodes.mask, rng)[0]
     if episodes.paths is None:
         return held_karp(episodes.agent, episodes.targets, rng)[0]
     return lookahead_dp(episodes.agent, episodes.paths, rng)[0]
@@ -46,6 +52,14 @@ class PlanPolicy(Policy):
         self.rng = np.random.default_rng([seed, 0xC0DE])
         self.found = np.zeros((n, cfg.n_targets), dtype=bool)
         self.rows = np.arange(n)
+        self.mask = episodes.mask
+        if self.mask is not None:
+            if self.method == "cu" or episodes.paths is not None:
+                raise ValueError(f"{self.name} on masked fields is for static targets and the optimal order (pt)")
+            from .masked import held_karp_masked
+
+            _, self.order = held_karp_masked(episodes.agent, episodes.targets, self.mask, self.rng)
+            return
         if self.method == "pt":
             if episodes.paths is None:
                 _, self.order = held_karp(episodes.agent, episodes.targets, self.rng)
@@ -70,6 +84,14 @@ class PlanPolicy(Policy):
             goal = tg[self.rows, key.argmin(axis=1)]
             return np.where(self.found.all(1), 0, step_towards(obs.positions, goal, self.rng))
         k = self._current_goal()
+        if self.mask is not None:  # shortest paths around the holes
+            from sim.gridworld.masks import neighbour_valid
+
+            from .masked import move_towards
+
+            goal = tg[self.rows, k]
+            a = move_towards(self.mask, obs.positions, goal, neighbour_valid(self.mask, obs.positions), self.rng)
+            return np.where(self.found.all(1), 0, a)
         if self.ep.paths is None:
             goal = tg[self.rows, k]
             return np.where(self.found.all(1), 0, step_towards(obs.positions, goal, self.rng))

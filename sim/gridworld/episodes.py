@@ -22,6 +22,8 @@ class Episodes:
     targets: np.ndarray  # (n, R, 2) at t = 0
     paths: np.ndarray | None  # (n, t_e + 2, R, 2) or None
     seed: int | None = None
+    #: (n, h, w) bool searchable cells per episode (sim.gridworld.masks), None = the whole grid
+    mask: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.agent.shape[0])
@@ -40,6 +42,7 @@ class Episodes:
             self.targets[idx],
             None if self.paths is None else self.paths[idx],
             self.seed,
+            None if self.mask is None else self.mask[idx],
         )
 
 
@@ -48,10 +51,20 @@ def world_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, 0x57A7E])
 
 
-def sample_episodes(cfg: GridConfig, n: int, seed: int) -> Episodes:
+def sample_episodes(cfg: GridConfig, n: int, seed: int, mask: np.ndarray | None = None) -> Episodes:
+    """mask: (h, w) or (n, h, w) bool searchable cells (sim.gridworld.masks); None = the
+    whole grid, the same episodes as ever."""
     if n < 1:
         raise ValueError(f"need at least one episode (got {n})")
     rng = world_rng(seed)
-    agent, targets = place(cfg, rng, n)
-    paths = target_paths(cfg, rng, targets) if cfg.moving else None
-    return Episodes(cfg, agent, targets, paths, seed)
+    if mask is None:
+        agent, targets = place(cfg, rng, n)
+        paths = target_paths(cfg, rng, targets) if cfg.moving else None
+        return Episodes(cfg, agent, targets, paths, seed)
+    from .masks import episode_masks
+    from .placement import place_masked
+
+    masks = episode_masks(mask, n, cfg.height, cfg.width)
+    agent, targets = place_masked(cfg, rng, masks)
+    paths = target_paths(cfg, rng, targets, masks) if cfg.moving else None
+    return Episodes(cfg, agent, targets, paths, seed, masks)
