@@ -26,8 +26,13 @@ class VisitTracking(Policy):
         self.rng = np.random.default_rng([seed, zlib.crc32(self.name.encode())])
         self.visited = np.zeros((n, cfg.height, cfg.width), dtype=bool)
         self.rows = np.arange(n)
+        self._masked = False
 
     def _see(self, obs: Observation) -> None:
+        if obs.mask is not None and not getattr(self, "_masked", False):
+            # a masked field: its masked cells count as visited, like off-map ones (nothing to find)
+            self._masked = True
+            self.visited |= ~np.asarray(obs.mask, bool)
         p = obs.positions
         self.visited[self.rows, p[:, 1], p[:, 0]] = True
 

@@ -122,3 +122,19 @@ def step_along(dist_to_goal: np.ndarray, pos: np.ndarray, valid: np.ndarray,
         key = key + prefer
     key = np.where(closer, key, -np.inf)
     return np.where(closer.any(axis=1), key.argmax(axis=1), -1).astype(np.int64)
+
+
+def largest_component(mask: np.ndarray) -> np.ndarray:
+    """(h, w) bool: the largest 4-connected part of a mask's searchable cells (the cells a drone
+    that never crosses a masked cell can reach from one another). Ties: the first in row order."""
+    m = np.asarray(mask, bool)
+    left = m.copy()
+    best = np.zeros_like(m)
+    while left.any():
+        ys, xs = np.nonzero(left)
+        d = distance_fields(m[None], np.array([[xs[0], ys[0]]]))[0]
+        part = d < UNREACHABLE
+        if part.sum() > best.sum():
+            best = part
+        left &= ~part
+    return best
