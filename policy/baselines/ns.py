@@ -60,7 +60,13 @@ class NaivePolicy(VisitTracking):
             keys = unvisited[seen].reshape(-1, 9) + self.rng.random((int(seen.sum()), 9)) * 0.5
             cell = keys.argmax(axis=1)
             goal = obs.positions[seen] + np.stack([cell % 3 - 1, cell // 3 - 1], axis=1)
-            a[seen] = step_towards(obs.positions[seen], goal, self.rng)
+            if obs.mask is None:
+                a[seen] = step_towards(obs.positions[seen], goal, self.rng)
+            else:  # a diagonal target: the way round that stays on the field
+                from ..groundtruth.masked import move_towards
+
+                mask = np.asarray(obs.mask, bool)[seen]
+                a[seen] = move_towards(mask, obs.positions[seen], goal, obs.valid[seen], self.rng)
         stuck = a >= 4  # nothing unvisited anywhere: any valid move
         if stuck.any():
             a[stuck] = random_valid(obs.valid[stuck, :4], self.rng)
