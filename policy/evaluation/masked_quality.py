@@ -25,6 +25,7 @@ from sim.gridworld.mask_fields import MASK_CLASSES
 from .runner import evaluate
 
 RECTANGLE = "rectangle"
+ORIENTATIONS: tuple[str, ...] = ("aligned", "rotated")
 GOAL = 0.05
 
 
@@ -36,6 +37,9 @@ class MaskedQualityConfig:
     seed: int = 0
     policies: tuple[str, ...] = ("oracle", "belief", "lawnmower")
     classes: tuple[str, ...] = MASK_CLASSES
+    #: "aligned": the field laid along the grid (how `uavsearch field` lays it by default);
+    #: "rotated": at a random angle to the grid (staircase edges)
+    orientations: tuple[str, ...] = ORIENTATIONS
 
     def __post_init__(self) -> None:
         if self.fields < 1:
@@ -45,6 +49,9 @@ class MaskedQualityConfig:
         bad = [c for c in self.classes if c not in MASK_CLASSES]
         if bad:
             raise ValueError(f"unknown mask class(es) {bad}; known: {', '.join(MASK_CLASSES)}")
+        bad = [o for o in self.orientations if o not in ORIENTATIONS]
+        if bad:
+            raise ValueError(f"unknown orientation(s) {bad}; known: {', '.join(ORIENTATIONS)}")
         if "oracle" not in self.policies:
             raise ValueError("the masked-fields section needs the oracle row (ratios are to it)")
 
@@ -70,7 +77,8 @@ def masked_task(label: str, qc_dict: dict[str, Any]) -> dict[str, Any]:
         w, h = qc.rectangle
         mask = None
     else:
-        mask = random_masks(label, qc.area, qc.fields, qc.seed)
+        kind, orientation = label.split(", ")
+        mask = random_masks(kind, qc.area, qc.fields, qc.seed, rotated=orientation == "rotated")
         h, w = mask.shape[1:]
     cfg = GridConfig(width=w, height=h, n_targets=qc.targets)
     out: dict[str, Any] = {"grid": [w, h], "fields_s": round(time.perf_counter() - t0, 1), "rows": {}}
@@ -94,7 +102,7 @@ def run_masked_quality(qc: MaskedQualityConfig, workers: int | None = 1) -> dict
     from ..fanout import fan_out
 
     t0 = time.perf_counter()
-    labels = [RECTANGLE, *qc.classes]
+    labels = [RECTANGLE, *(f"{k}, {o}" for o in qc.orientations for k in qc.classes)]
     cfg_dict = asdict(qc)
     results = fan_out(masked_task, [(label, cfg_dict) for label in labels], workers=workers)
     table = dict(zip(labels, results, strict=True))
@@ -117,6 +125,9 @@ def markdown(doc: dict[str, Any]) -> str:
         "# Search quality on masked fields (issue 28)", "",
         f"`{doc['command']}`: per class {doc['fields']} random masked fields of {qc['area']} searchable "
         f"cells (sim.gridworld.mask_fields, field i from seed ({qc['seed']}, i)), one episode each, "
+        "each class laid along the grid (`aligned`: the polygon's minimum-area rectangle or its arms along "
+        "the grid's axes, as `uavsearch field` lays its grid by default) and at a random angle to it "
+        "(`rotated`: staircase edges); "
         f"{qc['targets']} static targets placed uniformly on searchable cells; the rectangle is {w} x {h} "
         f"(the same searchable area), {doc['fields']} episodes. git `{doc['git_revision']}`, "
         f"{doc['created_utc']}, {doc['seconds']} s.", "",

@@ -9,6 +9,8 @@ earlier). The oracle follows each leg down the goal's distance field.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from sim.gridworld.masks import UNREACHABLE, distance_fields, step_along
@@ -61,3 +63,46 @@ def move_towards(mask: np.ndarray, pos: np.ndarray, goal: np.ndarray, valid: np.
     if lost.any():
         a[lost] = random_valid(valid[lost, :4], rng)
     return a
+
+
+def all_pairs(mask: np.ndarray) -> np.ndarray:
+    """(m, h * w, h * w) int32 path lengths between every two cells of each episode's mask
+    (row: from cell y * w + x). Quadratic in cells: for the moving-target oracle only, which
+    needs the distance between any two cells at any time (the planner uses one BFS field)."""
+    m, h, w = mask.shape
+    cells = np.stack(np.divmod(np.arange(h * w), w)[::-1], axis=1)  # (hw, 2) as (x, y)
+    return distance_fields(mask, np.broadcast_to(cells, (m, h * w, 2))).reshape(m, h * w, h * w)
+
+
+def lookahead_dp_masked(start: np.ndarray, paths: np.ndarray, mask: np.ndarray,
+                        rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """lookahead_dp on masked fields: earliest interceptions on path lengths around the holes
+    (exact by the same argument: agent and target each move at most one cell of the field per
+    step). Episodes in batches whose all-pairs tables stay under ~64 MB."""
+    from .lookahead import _lookahead_dp
+
+    n, _, r = paths.shape[:3]
+    h, w = mask.shape[1:]
+    step = max(1, min(TABLE_ENTRIES // ((1 << r) * r), _FIELD_ENTRIES // (h * w) ** 2))
+    lengths, orders = [], []
+    for i in range(0, n, step):
+        table = all_pairs(mask[i: i + step])
+
+        def metric(e: np.ndarray, a: np.ndarray, b: np.ndarray, table: np.ndarray = table) -> np.ndarray:
+            return table[e, a[:, 1] * w + a[:, 0], b[:, 1] * w + b[:, 0]].astype(np.int64)
+
+        got = _lookahead_dp(start[i: i + step], paths[i: i + step], rng, metric)
+        lengths.append(got[0])
+        orders.append(got[1])
+    return np.concatenate(lengths), np.concatenate(orders)
+
+
+def table_metric(mask: np.ndarray) -> Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """A lookahead metric over all of mask's episodes (the oracle's moves, one table)."""
+    table = all_pairs(mask)
+    w = mask.shape[2]
+
+    def metric(e: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return table[e, a[:, 1] * w + a[:, 0], b[:, 1] * w + b[:, 0]].astype(np.int64)
+
+    return metric

@@ -22,10 +22,10 @@ def optimal_lengths(episodes: Episodes, seed: int | None = None) -> np.ndarray:
     """|S_GO| per episode: PT (Held-Karp) for static targets, lookahead PT for moving ones."""
     rng = None if seed is None else np.random.default_rng(seed)
     if episodes.mask is not None:
-        if episodes.paths is not None:
-            raise ValueError("the oracle on masked fields is for static targets (moving: not yet)")
-        from .masked import held_karp_masked
+        from .masked import held_karp_masked, lookahead_dp_masked
 
+        if episodes.paths is not None:
+            return lookahead_dp_masked(episodes.agent, episodes.paths, episodes.mask, rng)[0]
         return held_karp_masked(episodes.agent, episodes.targets, episodes.mask, rng)[0]
     if episodes.paths is None:
         return held_karp(episodes.agent, episodes.targets, rng)[0]
@@ -54,11 +54,15 @@ class PlanPolicy(Policy):
         self.rows = np.arange(n)
         self.mask = episodes.mask
         if self.mask is not None:
-            if self.method == "cu" or episodes.paths is not None:
-                raise ValueError(f"{self.name} on masked fields is for static targets and the optimal order (pt)")
-            from .masked import held_karp_masked
+            if self.method == "cu":
+                raise ValueError("cu on masked fields: not implemented (the oracle, pt, is)")
+            from .masked import held_karp_masked, lookahead_dp_masked, table_metric
 
-            _, self.order = held_karp_masked(episodes.agent, episodes.targets, self.mask, self.rng)
+            if episodes.paths is None:
+                _, self.order = held_karp_masked(episodes.agent, episodes.targets, self.mask, self.rng)
+            else:
+                _, self.order = lookahead_dp_masked(episodes.agent, episodes.paths, self.mask, self.rng)
+                self._metric = table_metric(self.mask)
             return
         if self.method == "pt":
             if episodes.paths is None:
@@ -89,9 +93,14 @@ class PlanPolicy(Policy):
 
             from .masked import move_towards
 
-            goal = tg[self.rows, k]
-            a = move_towards(self.mask, obs.positions, goal, neighbour_valid(self.mask, obs.positions), self.rng)
-            return np.where(self.found.all(1), 0, a)
+            valid = neighbour_valid(self.mask, obs.positions, 5)
+            if self.ep.paths is None:
+                goal = tg[self.rows, k]
+                a = move_towards(self.mask, obs.positions, goal, valid, self.rng)
+                return np.where(self.found.all(1), 0, a)
+            _, cell = intercept(self.ep.paths, k, obs.positions, obs.t, metric=self._metric)
+            a = move_towards(self.mask, obs.positions, cell, valid, self.rng)  # Action.N once there: wait
+            return np.where(self.found.all(1), 4, a)
         if self.ep.paths is None:
             goal = tg[self.rows, k]
             return np.where(self.found.all(1), 0, step_towards(obs.positions, goal, self.rng))

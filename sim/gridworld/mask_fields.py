@@ -6,6 +6,10 @@ with exactly a given number of searchable cells.
 - holes: a rotated rectangle with 1 to 3 round holes (a pond, a barn);
 - strips: a thin band, 2.5 to 4 cells wide, at a random angle (a hedge-lined strip).
 
+Each at a random angle to the grid (rotated, the default: edges become staircases), or laid
+along it (rotated=False: the polygon's minimum-area rectangle, or its arms, along the grid's
+axes, which is how `uavsearch field` lays a grid over a real field by default).
+
 How: each shape is a continuous score over the plane, positive inside (the distance to the
 nearest edge for a convex polygon; the max of two for a union, the min with the distance to
 each hole for holes). The `area` cells of largest score are searchable: a level set of the
@@ -46,10 +50,29 @@ def _ccw(verts: np.ndarray) -> np.ndarray:
     return verts if area > 0 else verts[::-1]
 
 
-def _score(kind: str, area: int, rng: np.random.Generator, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+def _align(verts: np.ndarray) -> np.ndarray:
+    """A convex polygon turned so that its minimum-area bounding rectangle is axis-aligned (the
+    heading `uavsearch field` lays its grid at by default; sim.field.default_heading)."""
+    e = np.roll(verts, -1, axis=0) - verts
+    best, turn = np.inf, 0.0
+    for a in np.arctan2(e[:, 1], e[:, 0]):
+        c, s = np.cos(-a), np.sin(-a)
+        r = verts @ np.array([[c, s], [-s, c]])
+        area = np.ptp(r[:, 0]) * np.ptp(r[:, 1])
+        if area < best - 1e-12:
+            best, turn = area, -a
+    c, s = np.cos(turn), np.sin(turn)
+    return verts @ np.array([[c, s], [-s, c]])
+
+
+def _score(kind: str, area: int, rng: np.random.Generator, px: np.ndarray, py: np.ndarray,
+           rotated: bool = True) -> np.ndarray:
     """The class's score on the points (px, py), its shape scaled to about `area` cells about
-    the origin (the exact area is set by ranking)."""
+    the origin (the exact area is set by ranking). rotated=False: the shape's own axes along
+    the grid's (a quarter turn at random), as `uavsearch field` lays a grid along a field."""
     angle = rng.uniform(0.0, np.pi)
+    if not rotated:
+        angle = float(np.floor(angle / (np.pi / 2))) * (np.pi / 2)
     if kind == "convex":
         k = int(rng.integers(5, 9))
         t = (np.arange(k) + rng.uniform(-0.3, 0.3, size=k)) * (2 * np.pi / k)
@@ -58,6 +81,8 @@ def _score(kind: str, area: int, rng: np.random.Generator, px: np.ndarray, py: n
         pts = np.stack([ax * np.cos(t), ay * np.sin(t)], axis=1)
         c, s = np.cos(angle), np.sin(angle)
         verts = _ccw(pts @ np.array([[c, s], [-s, c]]))
+        if not rotated:
+            verts = _ccw(_align(verts))
         poly_area = 0.5 * abs(np.sum(verts[:, 0] * np.roll(verts[:, 1], -1) - np.roll(verts[:, 0], -1) * verts[:, 1]))
         return _poly_score(px, py, verts * np.sqrt(area / poly_area))
     if kind == "L":
@@ -98,9 +123,11 @@ def _connected(mask: np.ndarray) -> bool:
     return bool(np.all(d[mask] < UNREACHABLE))
 
 
-def random_mask(kind: str, area: int, seed: int) -> np.ndarray:
+def random_mask(kind: str, area: int, seed: int, rotated: bool = True) -> np.ndarray:
     """One field of the class with exactly `area` searchable, 4-connected cells, cropped to
-    its bounding box: (h, w) bool, True = searchable. The same seed gives the same field."""
+    its bounding box: (h, w) bool, True = searchable. The same seed gives the same field.
+    rotated: at a random angle to the grid (its edges staircases); False: laid along the
+    grid, as `uavsearch field` lays the grid along a field's minimum-area rectangle."""
     if kind not in MASK_CLASSES:
         raise ValueError(f"mask class must be one of {MASK_CLASSES} (got {kind!r})")
     if area < 4:
@@ -110,7 +137,7 @@ def random_mask(kind: str, area: int, seed: int) -> np.ndarray:
         half = int(np.ceil(area / 5.0 if kind == "strips" else 2.0 * np.sqrt(area))) + 3
         coords = np.arange(-half, half + 1) + rng.uniform(-0.5, 0.5, size=2)[:, None]
         px, py = np.meshgrid(coords[0], coords[1], indexing="xy")
-        score = _score(kind, area, rng, px, py) + rng.random(px.shape) * 1e-9  # ties at random
+        score = _score(kind, area, rng, px, py, rotated) + rng.random(px.shape) * 1e-9  # ties at random
         keep = np.zeros(score.size, bool)
         keep[np.argsort(-score.reshape(-1), kind="stable")[:area]] = True
         m = keep.reshape(score.shape)
@@ -123,12 +150,12 @@ def random_mask(kind: str, area: int, seed: int) -> np.ndarray:
     raise RuntimeError(f"no connected {kind!r} field of {area} cells in {_TRIES} draws from seed {seed}")
 
 
-def random_masks(kind: str, area: int, n: int, seed: int) -> np.ndarray:
+def random_masks(kind: str, area: int, n: int, seed: int, rotated: bool = True) -> np.ndarray:
     """n fields of the class (field i from seed (seed, i)), padded with masked cells to the
     largest bounding box: (n, h, w) bool."""
     if n < 1:
         raise ValueError(f"need at least one field (got {n})")
-    fields = [random_mask(kind, area, int(np.random.SeedSequence([seed, i]).generate_state(1)[0]))
+    fields = [random_mask(kind, area, int(np.random.SeedSequence([seed, i]).generate_state(1)[0]), rotated)
               for i in range(n)]
     h = max(f.shape[0] for f in fields)
     w = max(f.shape[1] for f in fields)

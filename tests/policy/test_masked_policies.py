@@ -108,7 +108,7 @@ def test_eval_field_cli() -> None:
 
     field = ROOT / "examples/fields/out/l_paddock_30deg/field.json"
     r = CliRunner().invoke(app, ["eval", "--field", str(field), "-p", "oracle", "-p", "belief",
-                                 "--episodes", "6", "--json"])
+                                 "--episodes", "4", "--json"])
     assert r.exit_code == 0, r.output
     import json
 
@@ -117,3 +117,19 @@ def test_eval_field_cli() -> None:
     assert doc["policies"]["belief"]["success_pct"] == 100.0
     bad = CliRunner().invoke(app, ["eval", "--field", str(ROOT / "README.md")])
     assert bad.exit_code != 0 and "README.md" in bad.output
+
+
+def test_moving_oracle_on_masks_is_exact() -> None:
+    from policy.groundtruth import lookahead_dp
+    from policy.groundtruth.masked import lookahead_dp_masked
+
+    cfg = GridConfig(width=7, height=6, n_targets=3, motion="random_walk", map_variant="spatiotemporal", t_e=80)
+    ep = sample_episodes(cfg, 10, 2)  # on a mask with no hole, path lengths are Manhattan's
+    full = np.ones((10, 6, 7), bool)
+    assert np.array_equal(lookahead_dp_masked(ep.agent, ep.paths, full)[0], lookahead_dp(ep.agent, ep.paths)[0])
+    masks = random_masks("holes", 50, 10, 9)
+    h, w = masks.shape[1:]
+    cfg = GridConfig(width=w, height=h, n_targets=3, motion="herd", distribution="equidistant",
+                     map_variant="spatiotemporal", t_e=120)
+    r = evaluate(make_policy("oracle", cfg), cfg, 10, 1, progress=False, mask=masks)
+    assert np.array_equal(r.moves, r.optimal) and (r.replaced == 0).all()
