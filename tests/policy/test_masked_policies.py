@@ -133,3 +133,19 @@ def test_moving_oracle_on_masks_is_exact() -> None:
                      map_variant="spatiotemporal", t_e=120)
     r = evaluate(make_policy("oracle", cfg), cfg, 10, 1, progress=False, mask=masks)
     assert np.array_equal(r.moves, r.optimal) and (r.replaced == 0).all()
+
+
+def test_belief_position_under_gps_stays_on_the_field() -> None:
+    from dataclasses import replace
+
+    masks = random_masks("holes", 60, 4, 2)
+    h, w = masks.shape[1:]
+    cfg = GridConfig(width=w, height=h)
+    world = BatchGridWorld(sample_episodes(cfg, 4, 1, masks), 1)
+    b = BeliefState(cfg, 4, mask=masks)
+    flat = np.ones((4, h, w), np.float32) / (h * w)  # a posterior that knows nothing
+    b.update(replace(observe(world), position_prob=flat))
+    assert (b.position[~masks] == 0).all()  # the view's off-map pattern rules masked cells out
+    assert np.allclose(b.position.sum(axis=(1, 2)), 1.0)
+    rows = np.arange(4)
+    assert (b.position[rows, world.agent[:, 1], world.agent[:, 0]] > 0).all()
