@@ -72,12 +72,12 @@ class BatchGridWorld:
 
     def valid_actions(self) -> np.ndarray:
         """(n, n_actions) bool: which actions keep each agent on the map (actions.valid_mask)."""
-        x, y = self.agent[:, 0], self.agent[:, 1]
-        cols = [y > 0, y < self.cfg.height - 1, x > 0, x < self.cfg.width - 1, np.ones(self.n, dtype=bool)]
         if self.mask is not None:  # a masked cell is off the map
             from .masks import neighbour_valid
 
             return neighbour_valid(self.mask, self.agent, self.n_actions)
+        x, y = self.agent[:, 0], self.agent[:, 1]
+        cols = [y > 0, y < self.cfg.height - 1, x > 0, x < self.cfg.width - 1, np.ones(self.n, dtype=bool)]
         return np.stack(cols[: self.n_actions], axis=1)
 
     def observe(self) -> tuple[np.ndarray, np.ndarray]:
