@@ -41,6 +41,10 @@ class Observation:
     #: paper's world). With levels, views is (n, 4, W, W): the highest level's window of
     #: detections (sim.gridworld.BatchGridWorld._sampled_views)
     level: np.ndarray | None = None
+    #: (n, h, w) bool searchable cells of each episode's field (sim.gridworld.masks): the
+    #: drone knows the field it searches; masked cells hold no target and cannot be entered.
+    #: None = the whole grid (every policy then behaves as before)
+    mask: np.ndarray | None = None
 
 
 def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:
@@ -57,6 +61,7 @@ def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observati
         # with a sampled view the agent still knows each recovery (the close-up confirms it)
         found_now=world.found_now.astype(np.float64) if sampled else None,
         level=world.level.copy() if world.cfg.levels > 1 else None,
+        mask=world.mask,
     )
 
 

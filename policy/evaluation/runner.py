@@ -55,15 +55,17 @@ def evaluate(
     keep_paths: int = 12,
     progress: bool = True,
     view_fn: Callable[[BatchGridWorld], np.ndarray] | None = None,
+    mask: np.ndarray | None = None,
 ) -> EvalResult:
     """Evaluate in batches of `batch` episodes; episode i is the same for every policy.
     Batch b's policy and world streams are seeded with seed + its first episode's index.
-    view_fn replaces the 3 x 3 view I (e.g. rendered camera frames for +S)."""
+    view_fn replaces the 3 x 3 view I (e.g. rendered camera frames for +S). mask: (h, w) or
+    (episodes, h, w) bool searchable cells (a masked field, sim.gridworld.masks), None = the grid."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1 (got {episodes})")
     if batch < 1:
         raise ValueError(f"batch must be >= 1 (got {batch})")
-    ep_all = sample_episodes(cfg, episodes, seed)
+    ep_all = sample_episodes(cfg, episodes, seed) if mask is None else sample_episodes(cfg, episodes, seed, mask)
     optimal = optimal_lengths(ep_all)
     moves: list[np.ndarray] = []
     finds: list[np.ndarray] = []

@@ -56,6 +56,11 @@ class BatchGridWorld:
         # map from visited/met at every observation cost more than the step itself
         self._map = np.zeros((n, h, w), dtype=np.float32)
         self._map[self._rows, self.agent[:, 1], self.agent[:, 0]] = VISITED_VALUE
+        #: (n, h, w) bool searchable cells (sim.gridworld.masks), None = the whole grid
+        self.mask = episodes.mask
+        if self.mask is not None and cfg.map_variant != "spatiotemporal":
+            # the map M shows masked cells as visited: nothing to search there (docs/gridworld.md)
+            self._map[~self.mask] = VISITED_VALUE
         self.replaced = np.zeros(n, dtype=np.int64)
         self._history: list[np.ndarray] = [self.agent.astype(np.int16)]
         #: (n,) altitude level of each agent (1 = the paper's height)
@@ -132,10 +137,19 @@ class BatchGridWorld:
         return self.episodes.targets_at(self.t)
 
     def valid_actions(self) -> np.ndarray:
-        """(n, n_actions) bool: which actions keep each agent on the map (actions.valid_mask);
-        with levels, stay only for moving targets, climb below the top, descend above level 1."""
-        x, y = self.agent[:, 0], self.agent[:, 1]
-        cols = [y > 0, y < self.cfg.height - 1, x > 0, x < self.cfg.width - 1, np.ones(self.n, dtype=bool)]
+        """(n, n_actions) bool: which actions keep each agent on the map (actions.valid_mask; a
+        masked cell is off the map); with levels, stay only for moving targets, climb below the
+        top, descend above level 1."""
+        if self.mask is not None:  # a masked cell is off the map
+            from .masks import neighbour_valid
+
+            if self.cfg.levels == 1:
+                return neighbour_valid(self.mask, self.agent, self.n_actions)
+            moves = neighbour_valid(self.mask, self.agent, 4)
+            cols = [moves[:, k] for k in range(4)] + [np.ones(self.n, dtype=bool)]
+        else:
+            x, y = self.agent[:, 0], self.agent[:, 1]
+            cols = [y > 0, y < self.cfg.height - 1, x > 0, x < self.cfg.width - 1, np.ones(self.n, dtype=bool)]
         if self.cfg.levels > 1:
             cols[4] = np.full(self.n, self.cfg.moving)
             cols += [self.level < self.cfg.levels, self.level > 1]
@@ -187,6 +201,10 @@ class BatchGridWorld:
         off_rows = np.stack([y == 0, np.zeros(n, dtype=bool), y == h - 1], axis=1)  # (n, 3)
         off_cols = np.stack([x == 0, np.zeros(n, dtype=bool), x == w - 1], axis=1)
         v[:, 1] = off_rows[:, :, None] | off_cols[:, None, :]
+        if self.mask is not None:  # masked cells read like off-map ones
+            from .masks import blocked_view
+
+            v[:, 1] = blocked_view(self.mask, self.agent)
         v[:, 2, 1, 1] = 1
         return v
 

@@ -26,6 +26,8 @@ class Episodes:
     #: seed it names the episode's own random streams (the detections), so an episode plays
     #: the same in any batch. None: 0..n-1.
     ids: np.ndarray | None = None
+    #: (n, h, w) bool searchable cells per episode (sim.gridworld.masks), None = the whole grid
+    mask: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.agent.shape[0])
@@ -49,6 +51,7 @@ class Episodes:
             None if self.paths is None else self.paths[idx],
             self.seed,
             self.episode_ids()[idx],
+            None if self.mask is None else self.mask[idx],
         )
 
 
@@ -57,13 +60,24 @@ def world_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, 0x57A7E])
 
 
-def sample_episodes(cfg: GridConfig, n: int, seed: int) -> Episodes:
+def sample_episodes(cfg: GridConfig, n: int, seed: int, mask: np.ndarray | None = None) -> Episodes:
+    """mask: (h, w) or (n, h, w) bool searchable cells (sim.gridworld.masks); None = the
+    whole grid, the same episodes as ever."""
     if n < 1:
         raise ValueError(f"need at least one episode (got {n})")
     rng = world_rng(seed)
-    agent, targets = place(cfg, rng, n)
-    paths = target_paths(cfg, rng, targets) if cfg.moving else None
-    return Episodes(cfg, agent, targets, paths, seed, np.arange(n, dtype=np.int64))
+    ids = np.arange(n, dtype=np.int64)
+    if mask is None:
+        agent, targets = place(cfg, rng, n)
+        paths = target_paths(cfg, rng, targets) if cfg.moving else None
+        return Episodes(cfg, agent, targets, paths, seed, ids)
+    from .masks import episode_masks
+    from .placement import place_masked
+
+    masks = episode_masks(mask, n, cfg.height, cfg.width)
+    agent, targets = place_masked(cfg, rng, masks)
+    paths = target_paths(cfg, rng, targets, masks) if cfg.moving else None
+    return Episodes(cfg, agent, targets, paths, seed, ids, masks)
 
 
 def detection_rng(seed: int | None, episode_id: int) -> np.random.Generator:

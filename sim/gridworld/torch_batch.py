@@ -30,6 +30,8 @@ class TorchGridWorld:
             raise ValueError(f"off_map must be 'random' or 'stay' (got {off_map!r})")
         self.off_map = off_map
         self.device = torch.device(device) if device is not None else default_device()
+        if getattr(episodes, "mask", None) is not None:
+            raise ValueError("TorchGridWorld has no masked fields yet; use BatchGridWorld for episodes with a mask")
         cfg = episodes.cfg
         if not cfg.perfect_detection:
             from .config import ConfigError
