@@ -37,11 +37,20 @@ class Observation:
     #: companion counts a find when a target not found before is under the camera); None = the
     #: belief infers it from the view and the map (policy.belief.BeliefState._find_events)
     found_now: np.ndarray | None = None
+    #: (n,) int altitude level flown (1..cfg.levels; docs/altitude.md); None = level 1 (the
+    #: paper's world). With levels, views is (n, 4, W, W): the highest level's window of
+    #: detections (sim.gridworld.BatchGridWorld._sampled_views)
+    level: np.ndarray | None = None
+    #: (n, h, w) bool searchable cells of each episode's field (sim.gridworld.masks): the
+    #: drone knows the field it searches; masked cells hold no target and cannot be entered.
+    #: None = the whole grid (every policy then behaves as before)
+    mask: np.ndarray | None = None
 
 
 def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observation:
     """Observation of every episode of a world; `views` replaces I (e.g. rendered frames)."""
     v, m = world.observe()
+    sampled = not world.cfg.perfect_detection
     return Observation(
         views=v if views is None else views,
         maps=m,
@@ -49,6 +58,10 @@ def observe(world: BatchGridWorld, views: np.ndarray | None = None) -> Observati
         valid=world.valid_actions(),
         t=world.t.copy(),
         active=~world.done,
+        # with a sampled view the agent still knows each recovery (the close-up confirms it)
+        found_now=world.found_now.astype(np.float64) if sampled else None,
+        level=world.level.copy() if world.cfg.levels > 1 else None,
+        mask=world.mask,
     )
 
 

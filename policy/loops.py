@@ -87,6 +87,7 @@ class LoopGuard(Policy):
         self.rows = np.arange(n)
         #: batch 1: how often each cell occurs in the queue's filled part (see _act_one)
         self._counts: dict[tuple[int, int], int] = {}
+        self._masked = False
 
     def _act_one(self, obs: Observation, a: np.ndarray) -> np.ndarray:
         """act() for a single episode (the flight decides at batch 1): the same state changes
@@ -126,6 +127,10 @@ class LoopGuard(Policy):
 
     def act(self, obs: Observation) -> np.ndarray:
         a = np.asarray(self.inner.act(obs), dtype=np.int64).copy()
+        if obs.mask is not None and not self._masked:
+            # masked cells count as visited, like off-map ones: the vote never heads for them
+            self._masked = True
+            self.visited |= ~np.asarray(obs.mask, bool)
         if self.scalar_one and len(a) == 1:
             return self._act_one(obs, a)
         act, pos, rows = obs.active, obs.positions, self.rows

@@ -10,7 +10,7 @@ import typer
 
 from sim.gridworld import GridConfig
 
-from .options import with_grid
+from .options import DETECTION, LEVELS, T_E, with_grid, with_levels
 
 
 def register(app: typer.Typer) -> None:
@@ -27,6 +27,12 @@ def register(app: typer.Typer) -> None:
         ),
         out: Path | None = typer.Option(None, "--out", help="Write results.json, table.md and plots here."),
         as_json: bool = typer.Option(False, "--json", help="Print only the JSON document on stdout."),
+        levels: int = LEVELS,
+        detection: Path | None = DETECTION,
+        t_e: int = T_E,
+        field: Path | None = typer.Option(
+            None, "--field", help="A polygon field (field.json from `uavsearch field`): the grid is its grid, "
+            "targets and moves on its searchable cells (--width/--height are ignored)."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -44,10 +50,13 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
         if checkpoint is not None and not checkpoint.is_file():
             raise typer.BadParameter(f"no checkpoint file at {checkpoint}", param_hint="--checkpoint")
-        cfg = grid
+        cfg, mask = grid, None
+        if field is not None:
+            cfg, mask = _field_grid(field, grid, echo=not as_json)
+        cfg = with_levels(cfg, levels, detection, t_e)
         try:
             doc = run_eval(policy, cfg, episodes, seed, out, progress=not as_json, checkpoint=checkpoint,
-                           echo=not as_json, loop_guard=loop_guard)
+                           echo=not as_json, loop_guard=loop_guard, mask=mask)
         except ValueError as e:  # e.g. a checkpoint trained for another map or action set
             raise typer.BadParameter(str(e)) from e
         if as_json:
@@ -55,3 +64,34 @@ def register(app: typer.Typer) -> None:
             sys.stdout.write("\n")
         elif out is not None:
             typer.echo(f"report: {out.resolve()}")
+
+
+def _field_grid(path: Path, grid: GridConfig, echo: bool = True):
+    """(GridConfig on the field's grid, its mask): the searchable cells the drone can reach, i.e.
+    the largest 4-connected part (a part cut off by a no-fly zone cannot be reached without
+    crossing it). A bad file is one usage error naming it."""
+    import dataclasses
+
+    import numpy as np
+
+    from sim.field import FieldError, load_field
+    from sim.gridworld import ConfigError
+    from sim.gridworld.masks import largest_component
+
+    try:
+        f = load_field(str(path))
+    except FieldError as e:
+        raise typer.BadParameter(str(e), param_hint="--field") from e
+    mask = largest_component(np.asarray(f.mask, bool))
+    dropped = int(np.asarray(f.mask).sum() - mask.sum())
+    try:
+        cfg = dataclasses.replace(grid, width=int(f.width), height=int(f.height))
+    except ConfigError as e:
+        raise typer.BadParameter(f"{path}: {e}", param_hint="--field") from e
+    if mask.sum() < cfg.n_targets + 1:
+        raise typer.BadParameter(f"{path}: {int(mask.sum())} searchable cells cannot hold {cfg.n_targets} targets "
+                                 "and the agent", param_hint="--field")
+    if echo:
+        typer.echo(f"{path}: grid {cfg.width} x {cfg.height}, {int(mask.sum())} searchable cells"
+                   + (f" ({dropped} cut off by no-fly zones, left out)" if dropped else ""))
+    return cfg, mask

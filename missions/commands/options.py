@@ -39,6 +39,26 @@ MAP = typer.Option(MapKind.auto, "--map", help="Map M variant (auto: spatial, or
 WIDTH = typer.Option(10, "--width", help="Grid width (cells).")
 HEIGHT = typer.Option(10, "--height", help="Grid height (cells).")
 TARGETS = typer.Option(5, "--targets", help="Number of targets |R|.")
+LEVELS = typer.Option(1, "--levels", min=1, max=3,
+                      help="Altitude levels L (1: the paper's single height; docs/altitude.md).")
+DETECTION = typer.Option(None, "--detection",
+                         help="Detection table JSON for levels > 1 (default: the measured one shipped with sim).")
+T_E = typer.Option(300, "--t-e", min=1, help="Move limit t_e of an episode.")
+
+
+def with_levels(grid: GridConfig, levels: int = 1, detection: Any = None, t_e: int | None = None) -> GridConfig:
+    """grid with altitude levels, a detection table (a JSON path) and t_e; a bad value is a
+    usage error naming it. levels 1 without a table is the grid unchanged."""
+    import dataclasses
+    from pathlib import Path
+
+    from sim.gridworld import DetectionTable
+
+    try:
+        table = DetectionTable.load(Path(detection)) if detection is not None else None
+        return dataclasses.replace(grid, levels=levels, detection=table, t_e=grid.t_e if t_e is None else t_e)
+    except ConfigError as e:
+        raise typer.BadParameter(str(e)) from e
 
 
 def grid_config(

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from .options import DETECTION, LEVELS
+
 
 def register(app: typer.Typer) -> None:
     @app.command()
@@ -23,8 +25,38 @@ def register(app: typer.Typer) -> None:
         reuse: Path | None = typer.Option(
             None, "--reuse", help="A previous search_quality.json: keep its measured cells, run only the others."),
         refresh: list[str] | None = typer.Option(None, "--refresh", help="With --reuse: rerun these rows anyway."),
+        levels: int = LEVELS,
+        detection: Path | None = DETECTION,
+        t_e: int | None = typer.Option(None, "--t-e", min=1, help="Move limit t_e of every setting (default 300)."),
+        masked: bool = typer.Option(
+            False, "--masked", help="Instead: the masked-fields section (issue 28): belief / oracle on random masked "
+            "fields of each class vs the rectangle of the same area -> OUT/fields/masked_quality.*"),
+        masked_fields: int = typer.Option(2000, "--masked-fields", min=1, help="With --masked: fields per class."),
+        masked_area: int = typer.Option(100, "--masked-area", min=6, help="With --masked: searchable cells per field."),
+        mask_class: list[str] | None = typer.Option(None, "--mask-class", help="With --masked: classes (default all)."),
     ) -> None:
         """Search quality table: mean moves, ratio to oracle, p90, all found %, (g)."""
+        if masked:
+            from policy.evaluation.masked_quality import (
+                MaskedQualityConfig,
+                run_masked_quality,
+                write_masked_quality,
+            )
+            from sim.gridworld.mask_fields import MASK_CLASSES
+
+            if out.exists() and not out.is_dir():
+                raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+            try:
+                mq = MaskedQualityConfig(fields=masked_fields, area=masked_area, seed=seed,
+                                         classes=tuple(mask_class) if mask_class else MASK_CLASSES)
+            except ValueError as e:
+                raise typer.BadParameter(str(e)) from e
+            doc = run_masked_quality(mq, workers=workers)
+            doc["command"] = (f"uavsearch quality --masked --masked-fields {masked_fields} --masked-area {masked_area}"
+                              f" --seed {seed} --workers {workers}")
+            for p in write_masked_quality(doc, out / "fields"):
+                typer.echo(str(p))
+            return
         from policy.evaluation.quality import (
             POLICIES,
             SETTINGS,
@@ -40,6 +72,7 @@ def register(app: typer.Typer) -> None:
                 episodes=episodes, seed=seed, gps_episodes=gps_episodes, gps=gps,
                 policies=tuple(policy) if policy else tuple(POLICIES),
                 settings=tuple(setting) if setting else tuple(label for label, _ in SETTINGS),
+                levels=levels, detection=None if detection is None else str(detection), t_e=t_e,
             )
         except ValueError as e:
             raise typer.BadParameter(str(e)) from e

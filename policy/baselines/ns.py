@@ -26,8 +26,13 @@ class VisitTracking(Policy):
         self.rng = np.random.default_rng([seed, zlib.crc32(self.name.encode())])
         self.visited = np.zeros((n, cfg.height, cfg.width), dtype=bool)
         self.rows = np.arange(n)
+        self._masked = False
 
     def _see(self, obs: Observation) -> None:
+        if obs.mask is not None and not getattr(self, "_masked", False):
+            # a masked field: its masked cells count as visited, like off-map ones (nothing to find)
+            self._masked = True
+            self.visited |= ~np.asarray(obs.mask, bool)
         p = obs.positions
         self.visited[self.rows, p[:, 1], p[:, 0]] = True
 
@@ -45,6 +50,9 @@ class NaivePolicy(VisitTracking):
         self._see(obs)
         h, w = self.cfg.height, self.cfg.width
         tgt = obs.views[:, 0].astype(bool)  # (n, 3, 3), rows y-1..y+1, off-map cells never set
+        if tgt.shape[1:] != (3, 3):  # altitude levels: NS flies at level 1, its 3 x 3 is the centre
+            c = tgt.shape[1] // 2
+            tgt = tgt[:, c - 1: c + 2, c - 1: c + 2]
         ys = np.clip(obs.positions[:, 1, None, None] + _OFF[None, :, None], 0, h - 1)
         xs = np.clip(obs.positions[:, 0, None, None] + _OFF[None, None, :], 0, w - 1)
         unvisited = tgt & ~self.visited[self.rows[:, None, None], ys, xs]
@@ -55,7 +63,13 @@ class NaivePolicy(VisitTracking):
             keys = unvisited[seen].reshape(-1, 9) + self.rng.random((int(seen.sum()), 9)) * 0.5
             cell = keys.argmax(axis=1)
             goal = obs.positions[seen] + np.stack([cell % 3 - 1, cell // 3 - 1], axis=1)
-            a[seen] = step_towards(obs.positions[seen], goal, self.rng)
+            if obs.mask is None:
+                a[seen] = step_towards(obs.positions[seen], goal, self.rng)
+            else:  # a diagonal target: the way round that stays on the field
+                from ..groundtruth.masked import move_towards
+
+                mask = np.asarray(obs.mask, bool)[seen]
+                a[seen] = move_towards(mask, obs.positions[seen], goal, obs.valid[seen], self.rng)
         stuck = a >= 4  # nothing unvisited anywhere: any valid move
         if stuck.any():
             a[stuck] = random_valid(obs.valid[stuck, :4], self.rng)

@@ -128,6 +128,8 @@ register_policy("frontier", _simple("frontier", "FrontierPolicy"), "greedy: near
 register_policy("lawnmower", _simple("lawnmower", "LawnmowerPolicy"),
                 "boustrophedon sweep from the nearest corner")
 register_policy("random", _simple("random_policy", "RandomPolicy"), "uniformly random valid moves")
+register_policy("lawnmower-high", _simple("lawnmower_high", "HighLawnmowerPolicy"),
+                "altitude levels: sweep lanes at the top level, then the close-up tour of every detection")
 register_policy("drqn", _drqn, "DRQN baseline trained by reward (shipped checkpoint or --checkpoint)")
 register_policy("dualstream", _network("dualstream_static_random"),
                 "the dual-stream network (shipped checkpoint or --checkpoint)")

@@ -69,6 +69,8 @@ import numpy as np
 
 from sim.gridworld import GridConfig
 
+from .soft import SoftView, fill, look
+
 #: the planes() channels, in order
 PLANE_NAMES: tuple[str, ...] = (
     "visited",  # P(cell visited)
@@ -97,6 +99,9 @@ SOFT_DRY = 0.02
 FAR_EPS = 0.005
 #: the floor of a view slot's likelihood (policy.belief.state.BeliefState._view_likelihood)
 VIEW_EPS = 0.02
+#: under soft evidence (altitude levels), a cell believed occupied with more than this is
+#: "sighted": a target to recover close up, not a place to look
+SIGHTED = 0.5
 #: the view's 9 slots (dy, dx), row-major like views[:, :, dy + 1, dx + 1]
 _SLOTS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
 _SLOT_DY = np.array([dy for dy, _ in _SLOTS])
@@ -161,10 +166,13 @@ def offmap_table(h: int, w: int) -> np.ndarray:
     return (ys < 0) | (ys >= h) | (xs < 0) | (xs >= w)
 
 
-def motion_kernel(cfg: GridConfig, a: np.ndarray) -> np.ndarray:
-    """One target move applied to densities a (..., h, w) (see the module docstring)."""
+def motion_kernel(cfg: GridConfig, a: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """One target move applied to densities a (..., h, w) (see the module docstring). mask:
+    (..., h, w) bool searchable cells (a masked cell is off the map for a target too), or None."""
     if not cfg.moving:
         return a
+    if mask is not None:
+        return _masked_motion_kernel(cfg, a, mask)
     h, w = a.shape[-2:]
     ones = np.ones((h, w))
     # number of in-bounds neighbours per cell
@@ -181,6 +189,37 @@ def motion_kernel(cfg: GridConfig, a: np.ndarray) -> np.ndarray:
     return out + sum(_shift(a * move, dy, dx) for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)))
 
 
+def _masked_motion_kernel(cfg: GridConfig, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """motion_kernel on masked fields: the neighbours counted are the searchable ones, and mass
+    only moves into them (the world's walker redraws a masked step like an off-map one, a herd
+    member stays), so the mass is kept and never enters a masked cell."""
+    on = mask.astype(a.dtype)
+    moves = ((1, 0), (-1, 0), (0, 1), (0, -1))
+    # searchable neighbours per cell: a cell's neighbour c' counts when c' is on the map and searchable
+    nb = sum(_shift(on, -dy, -dx) for dy, dx in moves)
+    if cfg.motion == "random_walk":
+        stay = ((4 - nb) / 4.0) ** 8 + _BLOCKED
+        share = a * (1.0 - stay) / np.maximum(nb, 1)
+        share = np.where(nb > 0, share, 0.0)
+        stay = np.where(nb > 0, stay, 1.0)
+        return (a * stay + sum(_shift(share, dy, dx) for dy, dx in moves)) * on
+    stay = cfg.herd_deviation / 3.0
+    move = (1.0 - stay) / 4.0
+    out = a * (stay + move * (4 - nb))
+    return (out + sum(_shift(a * move, dy, dx) for dy, dx in moves)) * on
+
+
+def offmap_table_masked(mask: np.ndarray) -> np.ndarray:
+    """(n, h, w, 3, 3) bool: offmap_table per episode, a masked cell counting as off the map
+    (the world's view shows it so)."""
+    n, h, w = mask.shape
+    ys = np.arange(h)[:, None, None, None] + np.arange(-1, 2)[None, None, :, None]
+    xs = np.arange(w)[None, :, None, None] + np.arange(-1, 2)[None, None, None, :]
+    off = (ys < 0) | (ys >= h) | (xs < 0) | (xs >= w)
+    on = mask[:, np.clip(ys, 0, h - 1), np.clip(xs, 0, w - 1)]
+    return off[None] | ~on
+
+
 class BeliefState:
     """Batched belief over n episodes of one GridConfig, computed from observations only.
 
@@ -188,12 +227,15 @@ class BeliefState:
     docstring for the model; PLANE_NAMES for the network input."""
 
     def __init__(self, cfg: GridConfig, n: int, prior: np.ndarray | None = None,
-                 pair: np.ndarray | None = None, view_evidence: bool = True) -> None:
+                 pair: np.ndarray | None = None, view_evidence: bool = True,
+                 mask: np.ndarray | None = None) -> None:
         """prior: (h, w) placement density or None (uniform). pair: (2h - 1, 2w - 1) pair
         correlation g(dy, dx) of the placement (policy.belief.prior.estimate_pair) or None
         (targets placed independently): static targets only, see _pool. view_evidence: under
         a GPS posterior, also condition the position on the view's targets (_view_likelihood);
-        False conditions on the off-map pattern only, as before Dec 2026."""
+        False conditions on the off-map pattern only, as before Dec 2026. mask: (h, w) or
+        (n, h, w) bool searchable cells (sim.gridworld.masks), None = the whole grid: masked
+        cells have zero prior (no target is there, none moves there)."""
         if n < 1:
             raise ValueError(f"n must be >= 1 (got {n})")
         h, w = cfg.height, cfg.width
@@ -206,6 +248,19 @@ class BeliefState:
             raise ValueError("prior must be finite, non-negative and not all zero")
         self.cfg, self.n = cfg, n
         self.prior = prior / prior.sum()
+        #: (n, h, w) bool searchable cells, or None (the whole grid)
+        self.mask: np.ndarray | None = None
+        #: (1, h, w) prior, or (n, h, w) the prior on each episode's searchable cells
+        self._prior_n = self.prior[None]
+        if mask is not None:
+            from sim.gridworld.masks import episode_masks
+
+            self.mask = episode_masks(mask, n, h, w)
+            mp = self.prior[None] * self.mask
+            tot = mp.sum(axis=(1, 2), keepdims=True)
+            # a prior with no mass on a field's searchable cells: uniform over them
+            mp = np.where(tot > 0, mp / np.maximum(tot, 1e-300), self.mask / self.mask.sum(axis=(1, 2), keepdims=True))
+            self._prior_n = mp
         self.rows = np.arange(n)
         r = float(cfg.n_targets)
         f32 = np.float32
@@ -219,8 +274,8 @@ class BeliefState:
         #: static: sighted-not-found mass; moving: the whole unfound density
         self._sighted = np.zeros((n, h, w), f32)
         if cfg.moving:
-            self._sighted[:] = (r * self.prior).astype(f32)
-        self._offmap = offmap_table(h, w)
+            self._sighted[:] = (r * self._prior_n).astype(f32)
+        self._offmap = offmap_table(h, w) if self.mask is None else offmap_table_masked(self.mask)
         self._pair = None
         if pair is not None and not cfg.moving:
             pair = np.asarray(pair, dtype=np.float64)
@@ -234,12 +289,22 @@ class BeliefState:
         #: every position so far was exact, so visited and seen are 0/1 (update's fast path)
         self._crisp = True
         #: prior * (1 - seen) while _crisp (static targets' pool weight)
-        self._unseen_prior = np.repeat(self.prior[None], n, axis=0)
+        self._unseen_prior = np.repeat(self.prior[None], n, axis=0) if self.mask is None else \
+            self._prior_n.astype(np.float64)
         self._reopened = False
         #: (n,) some position so far was uncertain (a posterior with no cell at >= 0.999)
         self._uncertain = np.zeros(n, bool)
         #: condition a GPS position posterior on the view's targets too (_view_likelihood)
         self.view_evidence = view_evidence
+        #: the view is a sample of detections (altitude levels, policy.belief.soft): the whole
+        #: unfound density is tracked per cell, as for moving targets, on soft evidence
+        self.soft: SoftView | None = None
+        if not cfg.perfect_detection:
+            self.soft = SoftView(cfg)
+            self._pair = None
+            self._sighted[:] = (r * self.prior).astype(f32)
+            #: (n,) level flown at the last update
+            self.level = np.ones(n, np.int64)
         self.target = self._target()
 
     # ----------------------------------------------------------------- derived quantities
@@ -263,17 +328,20 @@ class BeliefState:
     def _unseen_weight(self) -> np.ndarray:
         """(n, h, w) prior * (1 - seen): where never-sighted static targets can be. Kept up to
         date cell by cell while seen is 0/1 (the same numbers)."""
-        return self._unseen_prior if self._crisp else self.prior[None] * (1.0 - self.seen)
+        return self._unseen_prior if self._crisp else self._prior_n * (1.0 - self.seen)
 
     def _target(self, sighted_sum: np.ndarray | None = None) -> np.ndarray:
-        if self.cfg.moving:
+        if self.cfg.moving or self.soft is not None:
             return self._sighted.copy()
         return self._sighted + self._pool(sighted_sum)
 
     @property
     def sighted(self) -> np.ndarray:
         """(n, h, w) static: targets the view has shown that are believed not found yet
-        (moving: the whole unfound density; there is no separate never-sighted pool)."""
+        (moving: the whole unfound density; there is no separate never-sighted pool). Under soft
+        evidence (static): the cells believed more likely occupied than not (SIGHTED)."""
+        if self.soft is not None and not self.cfg.moving:
+            return np.where(self._sighted > SIGHTED, self._sighted, np.float32(0.0))
         return self._sighted
 
     @property
@@ -283,7 +351,10 @@ class BeliefState:
 
     @property
     def unsighted(self) -> np.ndarray:
-        """(n,) static: believed targets never shown by the view (0 means all are sighted)."""
+        """(n,) static: believed targets never shown by the view (0 means all are sighted);
+        under soft evidence, those not in a cell believed occupied (sighted)."""
+        if self.soft is not None and not self.cfg.moving:
+            return np.maximum(self.remaining - self.sighted.sum(axis=(1, 2), dtype=np.float64), 0.0)
         return np.maximum(self.remaining - self._sighted.sum(axis=(1, 2), dtype=np.float64), 0.0)
 
     # ----------------------------------------------------------------------- the update
@@ -299,7 +370,8 @@ class BeliefState:
             raise ValueError(f"position_prob must be {(self.n, h, w)} (got {p.shape})")
         # keep the cells whose off-map pattern matches the view's off-map channel
         off = np.asarray(obs.views)[:, 1].astype(bool)  # (n, 3, 3)
-        agree = np.all(self._offmap[None] == off[:, None, None], axis=(3, 4))  # (n, h, w)
+        table = self._offmap[None] if self._offmap.ndim == 4 else self._offmap  # masked: per episode
+        agree = np.all(table == off[:, None, None], axis=(3, 4))  # (n, h, w)
         q = p * agree
         if self.view_evidence:
             q = q * self._view_likelihood(np.asarray(obs.views)[:, 0])
@@ -331,6 +403,9 @@ class BeliefState:
     def update(self, obs) -> None:
         """Fold one decision's observation (views, positions, t, active, position_prob) in."""
         cfg = self.cfg
+        if self.soft is not None:
+            self._update_soft(obs)
+            return
         if self.n == 1 and obs.position_prob is None and self._crisp and not cfg.moving:
             self._update_one(obs)
             self._fold_far(obs)
@@ -348,8 +423,9 @@ class BeliefState:
             moves = (t + per - 1) // per - (prev + per - 1) // per
             for k in range(int(moves.max(initial=0))):
                 rows = moves > k
-                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows])
-                self.found[rows] = motion_kernel(cfg, self.found[rows])
+                mk = None if self.mask is None else self.mask[rows]
+                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows], mk)
+                self.found[rows] = motion_kernel(cfg, self.found[rows], mk)
         self.age += dt[:, None, None].astype(np.float32)
         p = self._position(obs)
         self.position = p
@@ -435,6 +511,73 @@ class BeliefState:
         self.target = self._target(sighted_sum if not self._reopened else None)
         self._fold_far(obs)
 
+    def _advance(self, t: np.ndarray) -> None:
+        """Time passes: ages grow, and moving targets' densities diffuse once per target move
+        (transitions s -> s + 1 with s % period == 0, s in [prev, t))."""
+        cfg = self.cfg
+        first = self.t < 0
+        prev = np.where(first, t, self.t)
+        dt = np.maximum(t - prev, 0)
+        if cfg.moving:
+            per = cfg.target_period
+            moves = (t + per - 1) // per - (prev + per - 1) // per
+            for k in range(int(moves.max(initial=0))):
+                rows = moves > k
+                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows])
+                self.found[rows] = motion_kernel(cfg, self.found[rows])
+        self.age += dt[:, None, None].astype(np.float32)
+
+    def _update_soft(self, obs) -> None:
+        """update() where the view is a sample of detections (policy.belief.soft): exact
+        positions, the level flown (obs.level; None: 1), finds from obs.found_now (the world
+        counts them; without it, the view's own cell at level 1 says it)."""
+        cfg, sv = self.cfg, self.soft
+        if obs.position_prob is not None:
+            raise ValueError("the soft-evidence belief (altitude levels) takes exact positions only")
+        views = np.asarray(obs.views)
+        k = sv.width
+        if views.ndim != 4 or views.shape[0] != self.n or views.shape[2:] != (k, k):
+            raise ValueError(f"views must be ({self.n}, C, {k}, {k}) windows for levels = {cfg.levels} "
+                             f"(got {views.shape})")
+        t = np.asarray(obs.t, dtype=np.int64)
+        self._advance(t)
+        level = getattr(obs, "level", None)
+        level = np.ones(self.n, np.int64) if level is None else np.asarray(level, np.int64).reshape(self.n)
+        if (level < 1).any() or (level > cfg.levels).any():
+            raise ValueError(f"level must be in 1..{cfg.levels} (got {level})")
+        self.level = level.copy()
+        pos = np.asarray(obs.positions, dtype=np.int64)
+        p = np.zeros_like(self.position)
+        p[self.rows, pos[:, 1], pos[:, 0]] = 1.0
+        self.position = p
+        cells, slot, pd, fa = sv.cells(pos, level)
+        detected = views[:, 0].reshape(self.n, -1)[cells[0], slot] > 0
+        u, f = look(self._sighted[cells], self.found[cells], detected, pd, fa)
+        sighted, found = self._sighted.astype(np.float64), self.found.astype(np.float64)
+        sighted[cells], found[cells] = u, f
+        low = level == 1
+        here = (self.rows[low], pos[low, 1], pos[low, 0])
+        now = getattr(obs, "found_now", None)
+        if now is None:  # the view's own cell at level 1: what it shows there is found now
+            now = np.zeros(self.n)
+            ctr = views[:, 0, k // 2, k // 2] > 0
+            now[low & ctr] = np.minimum(self._sighted[self.rows, pos[:, 1], pos[:, 0]], 1.0)[low & ctr]
+        now = np.asarray(now, np.float64).reshape(self.n)
+        sighted[here] = 0.0  # a target there would have been recovered on arrival
+        got = low & (now > 0)
+        found[self.rows[got], pos[got, 1], pos[got, 0]] = 1.0
+        cap = np.where(np.asarray(obs.active, dtype=bool), cfg.n_targets - 1, cfg.n_targets)
+        self.n_found = np.minimum(self.n_found + now, cap)
+        if cfg.moving:
+            found = fill(found, self.n_found, np.ones_like(found))
+        sighted = fill(sighted, self.remaining, np.maximum(1.0 - found, 0.0), leak=sv.leak)
+        self._sighted, self.found = sighted.astype(np.float32), found.astype(np.float32)
+        self.visited[here] = 1.0
+        self.seen[cells] = 1.0
+        self.age[cells] = 0.0
+        self.t = t.copy()
+        self.target = self._target()
+
     def _fold_far(self, obs) -> None:
         """Static targets sighted beyond the view (obs.far_targets: per sighting, its likelihood
         over cells): each is placed by Bayes over where targets can be (the unfound and found
@@ -487,7 +630,7 @@ class BeliefState:
             return
         self._reopened = True
         self.seen[dry] = np.minimum(self.seen[dry], self.visited[dry])
-        self._unseen_prior[dry] = self.prior[None] * (1.0 - self.visited[dry])
+        self._unseen_prior[dry] = (self.prior[None] if self.mask is None else self._prior_n[dry]) * (1.0 - self.visited[dry])
 
     def _update_one(self, obs) -> None:
         """update() for one episode with an exact position and static targets while visited and
@@ -686,6 +829,8 @@ class BeliefState:
         out[:, 4] = self.position
         out[:, 6] = np.where(self.seen > 0, np.minimum(self.age / _STALE_SCALE, 1.0), 1.0)
         if constants:
-            out[:, 5] = (self.prior * self.cfg.n_targets)[None]
-            out[:, 7] = 1.0
+            out[:, 5] = (self.prior * self.cfg.n_targets)[None] if self.mask is None else \
+                self._prior_n * self.cfg.n_targets
+            # on_map: the field's searchable cells (a masked cell is off the field)
+            out[:, 7] = 1.0 if self.mask is None else self.mask
         return out

@@ -62,8 +62,15 @@ class QualityConfig:
     policies: tuple[str, ...] = tuple(POLICIES)
     settings: tuple[str, ...] = tuple(label for label, _ in SETTINGS)
     gps: bool = True
+    #: altitude levels for every setting (docs/altitude.md); 1 = the paper's single height
+    levels: int = 1
+    #: a detection table JSON path for levels > 1 (None: the measured default)
+    detection: str | None = None
+    #: every setting's move limit (None: the setting's own, 300)
+    t_e: int | None = None
 
     def __post_init__(self) -> None:
+        setting_config("random", self.levels, self.detection, self.t_e)  # a bad table fails here
         if self.episodes < 1 or self.gps_episodes < 1:
             raise ValueError(f"episodes and gps_episodes must be >= 1 (got {self.episodes}, {self.gps_episodes})")
         unknown = [p for p in self.policies if p not in POLICIES]
@@ -75,6 +82,18 @@ class QualityConfig:
             raise ValueError(f"unknown setting(s) {bad}; known: {', '.join(known)}")
 
 
+def setting_config(label: str, levels: int = 1, detection: str | None = None,
+                   t_e: int | None = None) -> GridConfig:
+    """The setting's GridConfig with the quality run's levels, detection table and t_e."""
+    from sim.gridworld import DetectionTable
+
+    cfg = dict(SETTINGS)[label]
+    if levels == 1 and detection is None and t_e is None:
+        return cfg
+    table = DetectionTable.load(detection) if detection is not None else None
+    return dataclasses.replace(cfg, levels=levels, detection=table, t_e=cfg.t_e if t_e is None else t_e)
+
+
 def _summary(r: EvalResult) -> dict[str, Any]:
     c = r.columns
     return {
@@ -84,6 +103,7 @@ def _summary(r: EvalResult) -> dict[str, Any]:
         "recovery_rate_mean": c["recovery_rate_mean"],
         "recovery_rate_sd": c["recovery_rate_sd"],
         "mean_optimal_moves": c["mean_optimal_moves"],
+        "mean_flight_s": c.get("mean_flight_s"),
         "episodes": len(r.moves),
     }
 
@@ -104,10 +124,11 @@ def _note(e: BaseException) -> str:
     return str(e).replace(_ROOT, "")  # paths relative to the checkout
 
 
-def quality_task(row: str, label: str, episodes: int, seed: int) -> dict[str, Any]:
+def quality_task(row: str, label: str, episodes: int, seed: int, levels: int = 1,
+                 detection: str | None = None, t_e: int | None = None) -> dict[str, Any]:
     """One (policy row, setting) cell: its summary, or a note saying why it does not apply.
     A module-level function of plain arguments, so fan_out can ship it to a process or ray."""
-    cfg = dict(SETTINGS)[label]
+    cfg = setting_config(label, levels, detection, t_e)
     t0 = time.perf_counter()
     try:
         pol = _make(row, cfg)
@@ -115,9 +136,13 @@ def quality_task(row: str, label: str, episodes: int, seed: int) -> dict[str, An
         return {"note": _note(e)}
     except (ValueError, FileNotFoundError) as e:  # e.g. a checkpoint for another grid or motion
         return {"note": f"not applicable: {_note(e)}"}
+    # with levels the networks meet a view they were not built for (a W x W window of
+    # detections): whatever they raise then says the row does not apply, not that the run failed
+    errors: tuple[type[BaseException], ...] = (ValueError,) if levels == 1 else (ValueError, RuntimeError,
+                                                                                 IndexError, KeyError)
     try:
         r = evaluate(pol, cfg, episodes, seed, progress=False)
-    except ValueError as e:  # e.g. CU is defined for static targets only
+    except errors as e:  # e.g. CU is defined for static targets only
         return {"note": f"not applicable: {_note(e)}"}
     return _summary(r) | {"seconds": round(time.perf_counter() - t0, 1)}
 
@@ -162,6 +187,9 @@ def _reusable(prev: dict[str, Any] | None, qc: QualityConfig,
     the rows named in refresh."""
     if not prev or prev.get("test_seed") != qc.seed:
         return {}, {}
+    pq = prev.get("config", {}).get("quality", {})
+    if (pq.get("levels", 1), pq.get("detection"), pq.get("t_e")) != (qc.levels, qc.detection, qc.t_e):
+        return {}, {}  # cells measured at other heights or limits
     table = prev.get("table", {}) if prev.get("episodes") == qc.episodes else {}
     gps = prev.get("gps", {}) if prev.get("gps_episodes") == qc.gps_episodes else {}
     rev = prev.get("git_revision", "unknown")
@@ -194,9 +222,9 @@ def run_quality(qc: QualityConfig, workers: int | None = 1, ray_address: str | N
         for row in qc.policies:
             table[label][row] = old_t.get((label, row))
             if table[label][row] is None:
-                work.append((quality_task, (row, label, qc.episodes, qc.seed)))
+                work.append((quality_task, (row, label, qc.episodes, qc.seed, qc.levels, qc.detection, qc.t_e)))
                 slots.append((table[label], row))
-    if qc.gps:
+    if qc.gps and qc.levels == 1:  # the GPS table is the single-height world's
         for label, name, ck in gps_rows(qc.policies):
             cells = gps.setdefault(label, {})
             for est in GPS_ESTIMATORS:
@@ -220,7 +248,8 @@ def run_quality(qc: QualityConfig, workers: int | None = 1, ray_address: str | N
             where[key] = cell
         bar.update(len(chunk))
     bar.close()
-    cfgs = {label: cfg.to_dict() for label, cfg in SETTINGS if label in qc.settings}
+    cfgs = {label: setting_config(label, qc.levels, qc.detection, qc.t_e).to_dict()
+            for label, _ in SETTINGS if label in qc.settings}
     return stamp(
         {"quality": dataclasses.asdict(qc), "settings": cfgs}, qc.seed,
         test_seed=qc.seed, episodes=qc.episodes, gps_episodes=qc.gps_episodes,
@@ -257,6 +286,9 @@ def markdown(doc: dict[str, Any]) -> str:
         f"git `{doc['git_revision']}`, {doc['created_utc']}, {doc['seconds']} s for "
         f"{doc.get('cells_run', '?')} cells" + _reuse_note(doc) + ".",
         "",
+        *([f"Altitude levels L = {qc['levels']} (docs/altitude.md), detection table "
+           f"{qc.get('detection') or 'the measured default'}, t_e {qc.get('t_e') or 300}.", ""]
+          if qc.get("levels", 1) > 1 else []),
         "Columns: mean moves; ratio of mean moves to the oracle's and to the dual-stream network's (the "
         "paper's; issue 11's moving-target goal is searchnet <= 0.6 of it); 90th percentile of moves; "
         "episodes with every target found (t_e = 300); Table I's (g) recovery rate (mean ± sd). "

@@ -30,6 +30,8 @@ class EvalResult:
     loops: np.ndarray | None
     #: off-map choices the world replaced by a random valid move, per episode
     replaced: np.ndarray | None = None
+    #: seconds flown per episode (sim.gridworld.FlightModel: horizontal and vertical speeds)
+    flight_s: np.ndarray | None = None
     #: a few episodes kept for plots: start cells, targets at t = 0 and trajectories
     sample_paths: list[np.ndarray] = field(default_factory=list)
     sample_targets: list[np.ndarray] = field(default_factory=list)
@@ -39,6 +41,8 @@ class EvalResult:
         cols = table1_columns(self.moves, self.optimal, self.find_moves, self.loops, self.cfg.t_e)
         if self.replaced is not None:
             cols["offmap_replaced_mean"] = float(self.replaced.mean())
+        if self.flight_s is not None:
+            cols["mean_flight_s"] = float(self.flight_s.mean())
         return cols
 
 
@@ -51,20 +55,23 @@ def evaluate(
     keep_paths: int = 12,
     progress: bool = True,
     view_fn: Callable[[BatchGridWorld], np.ndarray] | None = None,
+    mask: np.ndarray | None = None,
 ) -> EvalResult:
     """Evaluate in batches of `batch` episodes; episode i is the same for every policy.
     Batch b's policy and world streams are seeded with seed + its first episode's index.
-    view_fn replaces the 3 x 3 view I (e.g. rendered camera frames for +S)."""
+    view_fn replaces the 3 x 3 view I (e.g. rendered camera frames for +S). mask: (h, w) or
+    (episodes, h, w) bool searchable cells (a masked field, sim.gridworld.masks), None = the grid."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1 (got {episodes})")
     if batch < 1:
         raise ValueError(f"batch must be >= 1 (got {batch})")
-    ep_all = sample_episodes(cfg, episodes, seed)
+    ep_all = sample_episodes(cfg, episodes, seed) if mask is None else sample_episodes(cfg, episodes, seed, mask)
     optimal = optimal_lengths(ep_all)
     moves: list[np.ndarray] = []
     finds: list[np.ndarray] = []
     loops: list[np.ndarray | None] = []
     replaced: list[np.ndarray] = []
+    flight: list[np.ndarray] = []
     paths: list[np.ndarray] = []
     targets: list[np.ndarray] = []
     bar = tqdm(total=episodes, desc=f"eval {policy.name}", unit="ep", disable=not progress, leave=False)
@@ -79,6 +86,7 @@ def evaluate(
         moves.append(world.t.copy())
         finds.append(world.find_moves.copy())
         replaced.append(world.replaced.copy())
+        flight.append(world.flight_s.copy())
         loops.append(policy.loops())
         if len(paths) < keep_paths:
             traj = world.trajectories()
@@ -96,6 +104,7 @@ def evaluate(
         find_moves=np.concatenate(finds),
         loops=None if any(x is None for x in loops) else np.concatenate(loops),  # type: ignore[arg-type]
         replaced=np.concatenate(replaced),
+        flight_s=np.concatenate(flight),
         sample_paths=paths,
         sample_targets=targets,
     )

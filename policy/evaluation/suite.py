@@ -36,10 +36,12 @@ def run_eval(
     checkpoint: Path | None = None,
     echo: bool = True,
     loop_guard: bool | None = None,
+    mask: Any = None,
 ) -> dict[str, Any]:
     """Evaluate named policies on the same episodes; print the table (echo); write the report
     into out (JSON, Markdown, plots). Returns the JSON document. loop_guard: None = the paper's
-    choice per policy (networks on static targets only), True/False forces it where it applies."""
+    choice per policy (networks on static targets only), True/False forces it where it applies.
+    mask: an (h, w) bool field mask (True = searchable; `uavsearch eval --field`), or None."""
     from ..baselines import make_policy
 
     if not policies:
@@ -49,13 +51,15 @@ def run_eval(
         kw: dict[str, Any] = {"checkpoint": checkpoint} if checkpoint is not None and name in _CHECKPOINTED else {}
         if loop_guard is not None and name not in _TRUTH:
             kw["loop_guard"] = loop_guard
-        results.append(evaluate(make_policy(name, cfg, **kw), cfg, episodes, seed, progress=progress))
+        results.append(evaluate(make_policy(name, cfg, **kw), cfg, episodes, seed, progress=progress, mask=mask))
     paper = paper_rows_for(cfg)
     if out is not None:
         doc = write_report(results, out, paper)
     else:
         doc = stamp(cfg.to_dict(), seed, episodes=episodes,
                     policies={r.policy: r.columns for r in results}, paper_rows=paper)
+    if mask is not None:
+        doc["searchable_cells"] = int(mask.sum())
     if echo:
         print_table(doc["policies"], paper,
                     title=f"{cfg.distribution}/{cfg.motion}: {episodes} episodes, seed {seed}")

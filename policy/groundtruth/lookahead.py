@@ -10,9 +10,14 @@ the paper's enumeration of every order.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .pt import backtrack, in_chunks
+
+#: metric(episode (m,), a (m, 2), b (m, 2)) -> (m,) path lengths between cells
+Metric = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
 def intercept(
@@ -21,6 +26,7 @@ def intercept(
     cell: np.ndarray,
     time: np.ndarray,
     episode: np.ndarray | None = None,
+    metric: Metric | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Earliest interception of target k[i] of episode episode[i] (default i) from
     (cell[i], time[i]); paths (n, T, R, 2). Returns (times, cells); time T - 1 if never.
@@ -28,6 +34,9 @@ def intercept(
     The gap f(t') = |P_k(t') - cell|_1 - (t' - time) shrinks by at most 2 per step (agent
     and target each move at most one cell), so no t' < t + ceil(f(t) / 2) can close it:
     jumping by that much is exact, needs no search window and takes a few iterations.
+    metric(episode, a, b): path lengths between cells a, b (m, 2) of those episodes instead of
+    Manhattan (masked fields: around the holes; the argument holds for any path metric in
+    which agent and target move at most 1 per step).
     """
     big_t = paths.shape[1]
     e = np.arange(len(k)) if episode is None else np.asarray(episode)
@@ -36,7 +45,9 @@ def intercept(
     todo = np.arange(len(k))
     while len(todo):
         tt = t[todo]
-        gap = np.abs(paths[e[todo], tt, k[todo]] - cell[todo]).sum(-1) - (tt - time[todo])
+        at = paths[e[todo], tt, k[todo]]
+        near = np.abs(at - cell[todo]).sum(-1) if metric is None else metric(e[todo], at, cell[todo])
+        gap = near - (tt - time[todo])
         more = (gap > 0) & (tt < big_t - 1)
         todo = todo[more]
         t[todo] = np.minimum(tt[more] + (gap[more] + 1) // 2, big_t - 1)
@@ -55,7 +66,7 @@ def lookahead_dp(
 
 
 def _lookahead_dp(
-    start: np.ndarray, paths: np.ndarray, rng: np.random.Generator | None
+    start: np.ndarray, paths: np.ndarray, rng: np.random.Generator | None, metric: Metric | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     n, _, r = paths.shape[:3]
     rows = np.arange(n)
@@ -65,7 +76,7 @@ def _lookahead_dp(
     parent = np.full((n, 1 << r, r), -1, dtype=np.int8)
     noise = rng.random((n, 1 << r, r)) * 0.5 if rng is not None else np.zeros((n, 1 << r, r))
     for j in range(r):
-        dp[:, 1 << j, j], _ = intercept(paths, np.full(n, j), start, np.zeros(n, dtype=np.int64))
+        dp[:, 1 << j, j], _ = intercept(paths, np.full(n, j), start, np.zeros(n, dtype=np.int64), metric=metric)
     for mask in range(1, full + 1):
         members = [i for i in range(r) if mask >> i & 1]
         m = len(members)
@@ -79,7 +90,7 @@ def _lookahead_dp(
         cells = paths[rows[:, None], t0, iss[None]]  # (n, P, 2)
         p = len(js)
         t, _ = intercept(
-            paths, np.tile(js, n), cells.reshape(-1, 2), t0.reshape(-1), np.repeat(rows, p)
+            paths, np.tile(js, n), cells.reshape(-1, 2), t0.reshape(-1), np.repeat(rows, p), metric
         )
         t = t.reshape(n, m, m - 1)
         key = (t + noise[:, prevs, iss].reshape(n, m, m - 1)).argmin(axis=2)  # (n, m)

@@ -21,6 +21,12 @@ from .pt import held_karp
 def optimal_lengths(episodes: Episodes, seed: int | None = None) -> np.ndarray:
     """|S_GO| per episode: PT (Held-Karp) for static targets, lookahead PT for moving ones."""
     rng = None if seed is None else np.random.default_rng(seed)
+    if episodes.mask is not None:
+        from .masked import held_karp_masked, lookahead_dp_masked
+
+        if episodes.paths is not None:
+            return lookahead_dp_masked(episodes.agent, episodes.paths, episodes.mask, rng)[0]
+        return held_karp_masked(episodes.agent, episodes.targets, episodes.mask, rng)[0]
     if episodes.paths is None:
         return held_karp(episodes.agent, episodes.targets, rng)[0]
     return lookahead_dp(episodes.agent, episodes.paths, rng)[0]
@@ -46,6 +52,18 @@ class PlanPolicy(Policy):
         self.rng = np.random.default_rng([seed, 0xC0DE])
         self.found = np.zeros((n, cfg.n_targets), dtype=bool)
         self.rows = np.arange(n)
+        self.mask = episodes.mask
+        if self.mask is not None:
+            if self.method == "cu":
+                raise ValueError("cu on masked fields: not implemented (the oracle, pt, is)")
+            from .masked import held_karp_masked, lookahead_dp_masked, table_metric
+
+            if episodes.paths is None:
+                _, self.order = held_karp_masked(episodes.agent, episodes.targets, self.mask, self.rng)
+            else:
+                _, self.order = lookahead_dp_masked(episodes.agent, episodes.paths, self.mask, self.rng)
+                self._metric = table_metric(self.mask)
+            return
         if self.method == "pt":
             if episodes.paths is None:
                 _, self.order = held_karp(episodes.agent, episodes.targets, self.rng)
@@ -70,6 +88,19 @@ class PlanPolicy(Policy):
             goal = tg[self.rows, key.argmin(axis=1)]
             return np.where(self.found.all(1), 0, step_towards(obs.positions, goal, self.rng))
         k = self._current_goal()
+        if self.mask is not None:  # shortest paths around the holes
+            from sim.gridworld.masks import neighbour_valid
+
+            from .masked import move_towards
+
+            valid = neighbour_valid(self.mask, obs.positions, 5)
+            if self.ep.paths is None:
+                goal = tg[self.rows, k]
+                a = move_towards(self.mask, obs.positions, goal, valid, self.rng)
+                return np.where(self.found.all(1), 0, a)
+            _, cell = intercept(self.ep.paths, k, obs.positions, obs.t, metric=self._metric)
+            a = move_towards(self.mask, obs.positions, cell, valid, self.rng)  # Action.N once there: wait
+            return np.where(self.found.all(1), 4, a)
         if self.ep.paths is None:
             goal = tg[self.rows, k]
             return np.where(self.found.all(1), 0, step_towards(obs.positions, goal, self.rng))

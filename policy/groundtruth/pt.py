@@ -44,6 +44,14 @@ def _held_karp(
     n, r = targets.shape[:2]
     d0 = manhattan(start[:, None, :], targets).astype(np.float64)  # (n, R)
     dd = manhattan(targets[:, :, None, :], targets[:, None, :, :]).astype(np.float64)  # (n, R, R)
+    orders = order_dp(d0, dd, rng)
+    return path_lengths(start, targets, orders), orders
+
+
+def order_dp(d0: np.ndarray, dd: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
+    """The Held-Karp DP on given integer costs: d0 (n, R) start -> target, dd (n, R, R) target
+    -> target, as float64. Returns the optimal orders (n, R), ties at random (see above)."""
+    n, r = d0.shape
     if rng is not None:
         eps = 1.0 / (r + 1)
         d0 = d0 + rng.random(d0.shape) * eps
@@ -65,8 +73,7 @@ def _held_karp(
             best = cand.argmin(axis=1)
             dp[:, mask, j] = cand[np.arange(n), best]
             parent[:, mask, j] = best
-    orders = backtrack(parent, dp[:, full, :].argmin(axis=1))
-    return path_lengths(start, targets, orders), orders
+    return backtrack(parent, dp[:, full, :].argmin(axis=1))
 
 
 def backtrack(parent: np.ndarray, last: np.ndarray) -> np.ndarray:

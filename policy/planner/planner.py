@@ -42,6 +42,7 @@ from ..belief import BeliefState
 from ..belief.state import weighted_rows
 from ..groundtruth.legs import step_towards
 from ..groundtruth.pt import held_karp
+from .altitude import AltitudeParams, AltitudeRule
 
 
 @dataclass(frozen=True)
@@ -131,9 +132,13 @@ def resolve_prior(prior: Any, cfg: GridConfig) -> tuple[np.ndarray | None, np.nd
 class BeliefPlanner(Policy):
     name = "belief"
 
-    def __init__(self, prior: Any = None, params: PlannerParams | None = None) -> None:
+    def __init__(self, prior: Any = None, params: PlannerParams | None = None,
+                 altitude: AltitudeParams | None = None) -> None:
+        """altitude: the weights of the rule over (cell, level) where cfg.levels > 1
+        (policy.planner.altitude); levels = 1 plans as before."""
         self.prior_spec = prior
         self.params = params or PlannerParams()
+        self.altitude = altitude or AltitudeParams()
         self._prior_cache: dict[tuple, tuple[np.ndarray | None, np.ndarray | None]] = {}
 
     def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
@@ -165,6 +170,26 @@ class BeliefPlanner(Policy):
         self.tour = np.full((n, cfg.n_targets, 2), -1, np.int64)
         self.tour_len = np.zeros(n, np.int64)
         self.in_tour = np.zeros(n, bool)
+        #: where the view is a sample of detections (altitude levels): the (cell, level) rule
+        self._alt: AltitudeRule | None = None
+        if not cfg.perfect_detection:
+            self._alt = AltitudeRule(cfg, n, self.rng, self.altitude, lambda a, r: _window(a, r, self._work))
+        #: (n, h, w) bool searchable cells once an observation brings a mask (obs.mask), else None
+        self.mask: np.ndarray | None = None
+        self._pair = pair
+
+    def _adopt_mask(self, mask: np.ndarray) -> None:
+        """A masked field (obs.mask, at the first decision): the belief's prior lives on the
+        searchable cells, distances are BFS distances around the holes (sim.gridworld.masks),
+        and a cell's edge weight counts the searchable cells it can be seen from."""
+        from sim.gridworld.masks import episode_masks
+
+        cfg, n = self.cfg, self.n
+        self.mask = episode_masks(np.asarray(mask, bool), n, cfg.height, cfg.width)
+        density = self._prior_cache[(cfg.width, cfg.height, cfg.distribution, cfg.n_targets)][0]
+        self.belief = BeliefState(cfg, n, density, self._pair, mask=self.mask)
+        viewers = _window(self.mask.astype(np.float64), 1)
+        self.cell_weight = np.where(viewers > 0, (9.0 / np.maximum(viewers, 1.0)) ** self.params.edge, 0.0)
 
     # ------------------------------------------------------------------------ the rule
     def _reveal(self) -> np.ndarray:
@@ -191,9 +216,17 @@ class BeliefPlanner(Policy):
         reveal = self._reveal()
         self._reveal_map = reveal
         pick = b.sighted if not self.cfg.moving else b.target
-        d = np.abs(self.xs[None] - pos[:, 0, None, None]) + np.abs(self.ys[None] - pos[:, 1, None, None])
+        if self.mask is not None:  # path lengths around the holes
+            from sim.gridworld.masks import UNREACHABLE, distance_fields
+
+            dm = distance_fields(self.mask, pos)
+            d = dm.astype(np.float64)
+        else:
+            d = np.abs(self.xs[None] - pos[:, 0, None, None]) + np.abs(self.ys[None] - pos[:, 1, None, None])
         value = (reveal + p.pickup * pick) / (d + p.travel_offset)
         value = value + self.rng.random(value.shape) * 1e-6  # ties at random
+        if self.mask is not None:
+            value[dm >= UNREACHABLE] = -1.0  # masked or cut off: never a goal
         value[self.rows, pos[:, 1], pos[:, 0]] = -1.0  # standing still recovers nothing new
         idx = value.reshape(self.n, -1).argmax(axis=1)
         w = self.cfg.width
@@ -201,6 +234,8 @@ class BeliefPlanner(Policy):
 
     def _first_move(self, pos: np.ndarray, goal: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """A shortest-path move towards goal, preferring the one whose next view reveals more."""
+        if self.mask is not None:
+            return self._first_move_masked(pos, goal, valid)
         d0 = np.abs(goal - pos).sum(axis=1)
         nxt = pos[:, None, :] + DELTAS[None, :4]  # (n, 4, 2)
         d1 = np.abs(goal[:, None, :] - nxt).sum(axis=2)
@@ -215,6 +250,21 @@ class BeliefPlanner(Policy):
             a[none] = step_towards(pos[none], goal[none], self.rng)
         return a
 
+    def _first_move_masked(self, pos: np.ndarray, goal: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """_first_move on a masked field: the moves that shorten the path (the goal's BFS
+        distance field), the one whose next view reveals more first."""
+        from sim.gridworld.masks import distance_fields, step_along
+
+        h, w = self.cfg.height, self.cfg.width
+        nxt = pos[:, None, :] + DELTAS[None, :4]
+        cx, cy = np.clip(nxt[..., 0], 0, w - 1), np.clip(nxt[..., 1], 0, h - 1)
+        gain = self.params.tie_reveal * self._reveal_map[self.rows[:, None], cy, cx]
+        a = step_along(distance_fields(self.mask, goal), pos, valid, self.rng, prefer=gain)
+        none = a < 0
+        if none.any():  # at the goal already, or cut off from it: any valid move
+            a[none] = random_valid(valid[none, :4], self.rng)
+        return a
+
     # ------------------------------------------------------------------------ the tour
     def _start_tours(self, rows: np.ndarray, pos: np.ndarray) -> None:
         sighted = self.belief.sighted[rows] > 0.5
@@ -226,7 +276,12 @@ class BeliefPlanner(Policy):
                 continue
             cells = np.argwhere(self.belief.sighted[sel] > 0.5)  # (m*k, 3) rows sorted by episode
             xy = np.stack([cells[:, 2], cells[:, 1]], axis=1).reshape(len(sel), k, 2)
-            _, order = held_karp(pos[np.searchsorted(rows, sel)], xy, self.rng)
+            if self.mask is not None:  # the tour on path lengths around the holes
+                from ..groundtruth.masked import held_karp_masked
+
+                _, order = held_karp_masked(pos[np.searchsorted(rows, sel)], xy, self.mask[sel], self.rng)
+            else:
+                _, order = held_karp(pos[np.searchsorted(rows, sel)], xy, self.rng)
             self.tour[sel, :k] = np.take_along_axis(xy, order[..., None], axis=1)
             self.tour_len[sel] = k
         self.in_tour[rows] = True
@@ -278,7 +333,11 @@ class BeliefPlanner(Policy):
 
     # ------------------------------------------------------------------------ act
     def act(self, obs: Observation) -> np.ndarray:
+        if obs.mask is not None and self.mask is None:
+            self._adopt_mask(obs.mask)
         self.belief.update(obs)
+        if self._alt is not None:
+            return self._alt.act(self.belief, obs)
         pos = np.asarray(obs.positions, dtype=np.int64)
         if obs.position_prob is not None:
             pos = self._where(pos)

@@ -68,6 +68,11 @@ class SearchNetPolicy(Policy):
         return self._fast[1]
 
     def _logits(self, obs: Observation) -> np.ndarray:
+        if obs.mask is not None and self.belief.mask is None:
+            # a masked field: the belief's prior on its searchable cells, and its on_map plane
+            # (the network's input) the mask itself; the logits are masked by obs.valid
+            self.belief = BeliefState(self.cfg, self.belief.n, mask=obs.mask)
+            self._constants_in_buffer = False
         self.belief.update(obs)
         if self.fast is not None:
             planes = self.belief.planes(out=self.fast.input_planes(self.cfg.height, self.cfg.width),

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:
+    from .detection import DetectionTable
 
 Distribution = Literal["random", "fixed", "equidistant", "gaussian"]
 Motion = Literal["static", "random_walk", "herd"]
@@ -38,6 +41,11 @@ class GridConfig:
     herd_deviation: float = 0.1
     #: spatiotemporal trail value written at the current cell; decays by 1 per step.
     trail_value: int = 50
+    #: altitude levels 1..levels the agent can fly (docs/altitude.md); 1 = the paper's world
+    levels: int = 1
+    #: what each level sees (sim.gridworld.detection.DetectionTable); None: perfect at level 1,
+    #: the measured default table for levels > 1 (a ConfigError until it is shipped)
+    detection: DetectionTable | None = None
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -64,6 +72,22 @@ class GridConfig:
             raise ConfigError(f"grid_spacing must be >= 1 (got {self.grid_spacing})")
         if not 0.0 <= self.herd_deviation <= 1.0:
             raise ConfigError(f"herd_deviation must be in [0, 1] (got {self.herd_deviation})")
+        if not 1 <= self.levels <= 3:
+            raise ConfigError(f"levels must be in 1..3 (got {self.levels})")
+        if self.detection is not None or self.levels > 1:
+            from .detection import DetectionTable, default_table
+
+            det = self.detection
+            if isinstance(det, dict):
+                det = DetectionTable.from_dict(det)
+            elif det is None:
+                det = default_table()
+            if not isinstance(det, DetectionTable):
+                raise ConfigError(f"detection must be a DetectionTable or its dict (got {type(det).__name__})")
+            if det.levels < self.levels:
+                raise ConfigError(f"the detection table has {det.levels} level(s); levels = {self.levels} needs "
+                                  f"{self.levels}")
+            object.__setattr__(self, "detection", det)
         if self.distribution in ("fixed", "equidistant"):
             cols, rows = self.lattice_shape
             span_x, span_y = (cols - 1) * self.grid_spacing, (rows - 1) * self.grid_spacing
@@ -79,8 +103,21 @@ class GridConfig:
 
     @property
     def n_actions(self) -> int:
-        """4 for static targets, 5 (with stay) for moving ones, as in the paper."""
+        """4 for static targets, 5 (with stay) for moving ones, as in the paper; 7 (with climb
+        and descend, Action values 5 and 6) where levels > 1."""
+        if self.levels > 1:
+            return 7
         return 5 if self.moving else 4
+
+    @property
+    def view_radius(self) -> int:
+        """Radius of the view window at the highest level (1: the paper's 3 x 3)."""
+        return self.levels
+
+    @property
+    def perfect_detection(self) -> bool:
+        """Level 1 only and it sees perfectly: the paper's world, on today's code paths."""
+        return self.levels == 1 and (self.detection is None or self.detection.perfect_at(1))
 
     @property
     def map_channels(self) -> int:
@@ -96,9 +133,17 @@ class GridConfig:
         return cols, rows
 
     def to_dict(self) -> dict:
+        """Plain JSON values. levels and detection appear only where they are not the paper's
+        world (levels 1, no table), so every document written before them reads the same."""
         d = asdict(self)
         d.pop("extra", None)
         d["gaussian_mean"] = list(self.gaussian_mean)
+        if self.detection is None:
+            d.pop("detection", None)
+        else:
+            d["detection"] = self.detection.to_dict()
+        if self.levels == 1 and self.detection is None:
+            d.pop("levels", None)
         return d
 
     @classmethod

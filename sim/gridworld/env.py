@@ -12,6 +12,7 @@ from gymnasium import spaces
 from .batch import BatchGridWorld
 from .config import GridConfig
 from .episodes import sample_episodes
+from .observations import LEVEL_VIEW_CHANNELS
 
 
 class GridSearchEnv(gym.Env):
@@ -22,23 +23,30 @@ class GridSearchEnv(gym.Env):
         self.render_mode = render_mode
         c, h, w = self.cfg.map_channels, self.cfg.height, self.cfg.width
         self.action_space = spaces.Discrete(self.cfg.n_actions)
-        self.observation_space = spaces.Dict(
-            {
-                "view": spaces.Box(0, 1, shape=(3, 3, 3), dtype=np.uint8),
-                "map": spaces.Box(0.0, float(max(10, self.cfg.trail_value)), shape=(c, h, w), dtype=np.float32),
-                "position": spaces.Box(0, max(w, h) - 1, shape=(2,), dtype=np.int64),
-            }
-        )
+        obs = {
+            "view": spaces.Box(0, 1, shape=(3, 3, 3), dtype=np.uint8),
+            "map": spaces.Box(0.0, float(max(10, self.cfg.trail_value)), shape=(c, h, w), dtype=np.float32),
+            "position": spaces.Box(0, max(w, h) - 1, shape=(2,), dtype=np.int64),
+        }
+        if self.cfg.levels > 1:  # the highest level's window of detections, and the level flown
+            k = 2 * self.cfg.view_radius + 1
+            obs["view"] = spaces.Box(0, 1, shape=(LEVEL_VIEW_CHANNELS, k, k), dtype=np.uint8)
+            obs["level"] = spaces.Discrete(self.cfg.levels, start=1)
+        self.observation_space = spaces.Dict(obs)
         self._world: BatchGridWorld | None = None
 
     def _obs(self) -> dict[str, np.ndarray]:
         assert self._world is not None
         v, m = self._world.observe()
-        return {"view": v[0], "map": m[0], "position": self._world.agent[0].copy()}
+        out = {"view": v[0], "map": m[0], "position": self._world.agent[0].copy()}
+        if self.cfg.levels > 1:
+            out["level"] = int(self._world.level[0])
+        return out
 
     def _info(self) -> dict[str, Any]:
         assert self._world is not None
-        return {"moves": int(self._world.t[0]), "found": int(self._world.found[0].sum())}
+        return {"moves": int(self._world.t[0]), "found": int(self._world.found[0].sum()),
+                "flight_s": float(self._world.flight_s[0])}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)

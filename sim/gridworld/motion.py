@@ -16,8 +16,14 @@ from .config import GridConfig
 _TRIES = 8
 
 
-def _in_bounds(c: np.ndarray, cfg: GridConfig) -> np.ndarray:
-    return (c[..., 0] >= 0) & (c[..., 0] < cfg.width) & (c[..., 1] >= 0) & (c[..., 1] < cfg.height)
+def _in_bounds(c: np.ndarray, cfg: GridConfig, mask: np.ndarray | None = None) -> np.ndarray:
+    """c (m, 2) on the map; with mask ((m, h, w) bool, the episodes' masks row by row), also
+    on a searchable cell: a masked cell is off the map for a target too."""
+    inside = (c[..., 0] >= 0) & (c[..., 0] < cfg.width) & (c[..., 1] >= 0) & (c[..., 1] < cfg.height)
+    if mask is None:
+        return inside
+    rows = np.arange(len(c))
+    return inside & mask[rows, np.clip(c[:, 1], 0, cfg.height - 1), np.clip(c[:, 0], 0, cfg.width - 1)]
 
 
 def _free(pos: np.ndarray, k: int, cand: np.ndarray) -> np.ndarray:
@@ -27,7 +33,8 @@ def _free(pos: np.ndarray, k: int, cand: np.ndarray) -> np.ndarray:
     return ~np.any(same, axis=1)
 
 
-def _random_walk_step(cfg: GridConfig, rng: np.random.Generator, pos: np.ndarray) -> np.ndarray:
+def _random_walk_step(cfg: GridConfig, rng: np.random.Generator, pos: np.ndarray,
+                      mask: np.ndarray | None = None) -> np.ndarray:
     pos = pos.copy()
     n, r = pos.shape[:2]
     for k in range(r):
@@ -37,7 +44,7 @@ def _random_walk_step(cfg: GridConfig, rng: np.random.Generator, pos: np.ndarray
                 break
             a = rng.integers(0, 4, size=todo.size)
             cand = pos[todo, k] + DELTAS[a]
-            ok = _in_bounds(cand, cfg) & _free(pos[todo], k, cand)
+            ok = _in_bounds(cand, cfg, None if mask is None else mask[todo]) & _free(pos[todo], k, cand)
             pos[todo[ok], k] = cand[ok]
             todo = todo[~ok]
         # Targets boxed in after a few tries stay where they are this step.
@@ -45,7 +52,8 @@ def _random_walk_step(cfg: GridConfig, rng: np.random.Generator, pos: np.ndarray
 
 
 def _herd_step(
-    cfg: GridConfig, rng: np.random.Generator, pos: np.ndarray, direction: np.ndarray
+    cfg: GridConfig, rng: np.random.Generator, pos: np.ndarray, direction: np.ndarray,
+    mask: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     pos = pos.copy()
     n, r = pos.shape[:2]
@@ -56,7 +64,7 @@ def _herd_step(
         deviate = rng.random(n) < cfg.herd_deviation
         a = np.where(deviate, perp[np.arange(n), rng.integers(0, 3, size=n)], direction)
         cand = pos[:, k] + DELTAS[a]
-        inside = _in_bounds(cand, cfg)
+        inside = _in_bounds(cand, cfg, mask)
         border |= ~inside & ~deviate
         ok = inside & _free(pos, k, cand)
         pos[ok, k] = cand[ok]
@@ -68,8 +76,11 @@ def _herd_step(
     return pos, direction
 
 
-def target_paths(cfg: GridConfig, rng: np.random.Generator, targets: np.ndarray) -> np.ndarray:
-    """targets (n, R, 2) at t=0 -> (n, t_e + 2, R, 2) positions for t = 0 .. t_e + 1."""
+def target_paths(cfg: GridConfig, rng: np.random.Generator, targets: np.ndarray,
+                 mask: np.ndarray | None = None) -> np.ndarray:
+    """targets (n, R, 2) at t=0 -> (n, t_e + 2, R, 2) positions for t = 0 .. t_e + 1.
+    mask: (n, h, w) bool searchable cells, or None; targets never step into a masked cell
+    (treated as the map's edge: a random walker redraws, a herd member stays and turns the herd)."""
     n = targets.shape[0]
     steps = cfg.t_e + 2
     out = np.empty((n, steps) + targets.shape[1:], dtype=np.int64)
@@ -79,9 +90,9 @@ def target_paths(cfg: GridConfig, rng: np.random.Generator, targets: np.ndarray)
     for t in range(steps - 1):
         if cfg.motion != "static" and t % cfg.target_period == 0:
             if cfg.motion == "random_walk":
-                pos = _random_walk_step(cfg, rng, pos)
+                pos = _random_walk_step(cfg, rng, pos, mask)
             else:
-                pos, direction = _herd_step(cfg, rng, pos, direction)
+                pos, direction = _herd_step(cfg, rng, pos, direction, mask)
         out[:, t + 1] = pos
     return out
 

@@ -14,6 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 VIEW_CHANNELS = 3
+#: with altitude levels: (detection, off-map, agent, outside the level's footprint), W x W
+#: slots, W = 2 * levels + 1 (sim.gridworld.batch.BatchGridWorld._sampled_views)
+LEVEL_VIEW_CHANNELS = 4
 AGENT_VALUE, VISITED_VALUE, MET_VALUE = 10.0, 1.0, 5.0
 _OFF = np.arange(-1, 2)
 

@@ -91,3 +91,84 @@ def place(cfg: GridConfig, rng: np.random.Generator, n: int) -> tuple[np.ndarray
         agent = np.stack([fx[pick], fy[pick]], axis=1).astype(np.int64)
     fn = {"random": _random, "gaussian": _gaussian, "equidistant": _equidistant, "fixed": _fixed}
     return agent, fn[cfg.distribution](cfg, rng, agent)
+
+
+def _uniform_cells(rng: np.random.Generator, free: np.ndarray) -> np.ndarray:
+    """One cell (x, y) per episode, uniform over its free cells: free (n, h, w) bool."""
+    n, h, w = free.shape
+    keys = rng.random((n, h * w))
+    keys[~free.reshape(n, -1)] = -1.0
+    idx = keys.argmax(axis=1)
+    return np.stack([idx % w, idx // w], axis=1).astype(np.int64)
+
+
+def place_masked(cfg: GridConfig, rng: np.random.Generator, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """place() on masked fields, mask (n, h, w) bool searchable: the agent uniform over each
+    episode's searchable cells, targets by the same models on searchable cells only (random:
+    uniform over them; gaussian: redrawn while masked; equidistant: an offset whose whole
+    lattice is searchable; fixed: the one layout, which every mask must leave searchable)."""
+    n = mask.shape[0]
+    counts = mask.reshape(n, -1).sum(axis=1)
+    if (counts < cfg.n_targets + 1).any():
+        raise ValueError(f"{cfg.n_targets} targets and the agent need {cfg.n_targets + 1} searchable cells; "
+                         f"a mask has {int(counts.min())}")
+    rows = np.arange(n)
+    if cfg.distribution == "fixed":
+        layout = fixed_layout(cfg)
+        if not mask[:, layout[:, 1], layout[:, 0]].all():
+            raise ValueError("the fixed layout (the lattice centred on the grid) falls on masked cells of "
+                             "this field; use another --distribution")
+        free = mask.copy()
+        free[:, layout[:, 1], layout[:, 0]] = False
+        return _uniform_cells(rng, free), np.broadcast_to(layout, (n, cfg.n_targets, 2)).copy()
+    agent = _uniform_cells(rng, mask)
+    if cfg.distribution == "random":
+        wh = cfg.width * cfg.height
+        keys = rng.random((n, wh))
+        keys[~mask.reshape(n, -1)] = np.inf
+        keys[rows, agent[:, 1] * cfg.width + agent[:, 0]] = np.inf
+        cells = np.argsort(keys, axis=1)[:, : cfg.n_targets]
+        return agent, np.stack([cells % cfg.width, cells // cfg.width], axis=-1).astype(np.int64)
+    if cfg.distribution == "gaussian":
+        out = np.full((n, cfg.n_targets, 2), -1, dtype=np.int64)
+        mean = np.asarray(cfg.gaussian_mean, dtype=np.float64)
+        for k in range(cfg.n_targets):
+            todo = np.arange(n)
+            for _ in range(10_000):
+                if todo.size == 0:
+                    break
+                c = np.rint(rng.normal(mean, cfg.gaussian_sd, size=(todo.size, 2))).astype(np.int64)
+                ok = (c[:, 0] >= 0) & (c[:, 0] < cfg.width) & (c[:, 1] >= 0) & (c[:, 1] < cfg.height)
+                ok &= mask[todo, np.clip(c[:, 1], 0, cfg.height - 1), np.clip(c[:, 0], 0, cfg.width - 1)]
+                ok &= ~np.all(c == agent[todo], axis=1)
+                if k:
+                    ok &= ~np.any(np.all(out[todo, :k] == c[:, None], axis=2), axis=1)
+                out[todo[ok], k] = c[ok]
+                todo = todo[~ok]
+            else:
+                raise ValueError("gaussian placement found no searchable cell near gaussian_mean on a mask; "
+                                 "move the mean onto the field or widen gaussian_sd")
+        return agent, out
+    off = lattice_offsets(cfg)
+    span = off.max(axis=0)
+    ox, oy = np.arange(cfg.width - span[0]), np.arange(cfg.height - span[1])
+    origins = np.stack(np.meshgrid(ox, oy, indexing="xy"), axis=-1).reshape(-1, 2)
+    layouts = origins[:, None, :] + off[None]  # (O, R, 2)
+    on = mask[:, layouts[..., 1], layouts[..., 0]].all(axis=2)  # (n, O)
+    hits = np.any(np.all(layouts[None] == agent[:, None, None, :], axis=-1), axis=-1)
+    allowed = on & ~hits
+    if not allowed.any(axis=1).all():
+        # the agent may stand where the only lattice fits: put it elsewhere on the field
+        bad = ~allowed.any(axis=1)
+        if not on[bad].any(axis=1).all():
+            raise ValueError(f"no offset of the {cfg.n_targets}-target lattice (spacing {cfg.grid_spacing}) lies "
+                             "on the searchable cells of a mask; use --distribution random")
+        first = layouts[on[bad].argmax(axis=1)]  # (b, R, 2)
+        free = mask[bad].copy()
+        free[np.arange(int(bad.sum()))[:, None], first[..., 1], first[..., 0]] = False
+        agent[bad] = _uniform_cells(rng, free)
+        hits = np.any(np.all(layouts[None] == agent[:, None, None, :], axis=-1), axis=-1)
+        allowed = on & ~hits
+    keys = rng.random(allowed.shape)
+    keys[~allowed] = np.inf
+    return agent, layouts[np.argmin(keys, axis=1)]

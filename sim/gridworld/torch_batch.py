@@ -30,7 +30,14 @@ class TorchGridWorld:
             raise ValueError(f"off_map must be 'random' or 'stay' (got {off_map!r})")
         self.off_map = off_map
         self.device = torch.device(device) if device is not None else default_device()
+        if getattr(episodes, "mask", None) is not None:
+            raise ValueError("TorchGridWorld has no masked fields yet; use BatchGridWorld for episodes with a mask")
         cfg = episodes.cfg
+        if not cfg.perfect_detection:
+            from .config import ConfigError
+
+            raise ConfigError(f"TorchGridWorld runs the paper's world only (levels = 1, perfect detection); "
+                              f"levels = {cfg.levels} needs BatchGridWorld")
         self.cfg, self.episodes = cfg, episodes
         n, r, w, h = len(episodes), cfg.n_targets, cfg.width, cfg.height
         self.n = n

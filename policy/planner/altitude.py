@@ -1,0 +1,303 @@
+"""`belief` with altitude levels: where to look AND from how high, as one decision.
+
+The same rule as the single-height planner (information per unit of time), over (cell, level)
+pairs. For every cell g and level l:
+
+    value(g, l) = (gain_l(g) + [l == 1] * pickup * close(g)) / (time(g, l) + travel_offset)
+
+- gain_l(g): the expected never-sighted targets a look from g at level l would sight: the
+  diffuse (not-sighted) unfound mass of each cell in the footprint times p_d(l, ring).
+- close(g): the believed target on g (a cell believed occupied, BeliefState.sighted), which
+  standing there at level 1 recovers, plus `cluster` times the sighted targets within two
+  cells (a descent pays once for a group).
+- time(g, l): moves: the horizontal distance plus the level changes, plus `return_cost` per
+  level below the current one while targets are still believed unsighted (the climb back).
+- Once fewer than `tour_below` targets are believed unsighted (static targets): the shortest
+  tour through the sighted cells at level 1 (Held-Karp up to TOUR_EXACT cells, nearest
+  neighbour beyond), recomputed only when a new cell is sighted (a suffix of an optimal path
+  is optimal); if it runs dry with targets left, the search goes on.
+
+Moves: climb first (the higher view sees more on the way), travel, descend at the goal.
+The belief is policy.belief.BeliefState with soft evidence (policy.belief.soft).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.gridworld import DELTAS, Action, GridConfig
+
+from ..base import Observation, random_valid
+from ..groundtruth.legs import step_towards
+from ..groundtruth.pt import held_karp
+
+#: tours through at most this many cells are exact (Held-Karp); longer ones nearest neighbour
+TOUR_EXACT = 9
+
+
+@dataclass(frozen=True)
+class AltitudeParams:
+    """The altitude rule's weights (tuned on seeds 777 and 4242, never the test seeds)."""
+
+    pickup: float = 3.0
+    travel_offset: float = 0.5
+    return_cost: float = 2.0
+    cluster: float = 0.0
+    tour_below: float = 0.5
+    tie_reveal: float = 1.0
+    #: the last step's goal keeps this bonus (a share of its value): hysteresis, so that two
+    #: near-equal goals do not alternate
+    stick: float = 0.1
+    #: never-sighted mass in cells few footprints can see (borders, corners: the highest
+    #: level's window) is worth (K / viewers) ** edge, K = its size: left for later, such a
+    #: cell costs a trip of its own
+    edge: float = 1.0
+    #: weight of the mass in the ring of two cells beyond each footprint (steers towards
+    #: regions not yet looked at rather than single leftover cells)
+    outer: float = 0.0
+    #: a cell believed occupied with more than this is a target to recover; below it (and
+    #: above 0.5) a sighting to confirm by looking again
+    confirm: float = 0.5
+    #: fly no higher than this level; 0: the highest whose footprint fits twice across the
+    #: field and sees well enough (top_level: on 10 x 10 level 2, from 14 x 14 level 3 where
+    #: its mean p_d over the footprint is at least min_footprint_p)
+    max_level: int = 0
+    min_footprint_p: float = 0.7
+    #: the climb back costs in full while return_scale or more targets are believed unsighted,
+    #: less as fewer are (at the end there is nothing to climb back for)
+    return_scale: float = 1.0
+    #: the gain counts p_eff = 1 - (1 - p_d) ** looks: a cell in a footprint is looked at
+    #: again from the next cells along the way, so the far rings' low p_d undervalues them
+    looks: float = 1.0
+
+    def __post_init__(self) -> None:
+        for k in ("pickup", "travel_offset", "return_cost", "cluster", "tour_below", "tie_reveal", "stick",
+                  "edge", "outer", "looks", "confirm", "min_footprint_p"):
+            if not getattr(self, k) >= 0:
+                raise ValueError(f"AltitudeParams.{k} must be >= 0 (got {getattr(self, k)})")
+        if not self.return_scale > 0:
+            raise ValueError(f"AltitudeParams.return_scale must be > 0 (got {self.return_scale})")
+
+
+def top_level(cfg: GridConfig, max_level: int = 0, min_footprint_p: float = 0.7) -> int:
+    """The highest level the rule flies: max_level where given (capped by cfg.levels), else the
+    highest whose footprint fits twice across the field's narrow side and whose mean p_d over
+    the footprint is at least min_footprint_p. Why: a footprint wider than half the field sees
+    little that the next lower one does not, and every level costs a move each way (10 x 10 / 5,
+    seed 777: 33.6 moves flying up to level 3, 32.6 up to level 2, single height 32.8); and a
+    level that misses as often as it sees leaves mass to come back for (the provisional table's
+    level 3, mean p_d 0.56: 116.3 moves on 20 x 20 / 10 and 248.8 on 30 x 30 / 15, against 114.6
+    and 246.2 flying up to level 2, mean p_d 0.84; seed 777)."""
+    if max_level > 0:
+        return min(max_level, cfg.levels)
+    p, _ = cfg.detection.ring_table(cfg.levels)
+    ok = []
+    for lv in range(1, cfg.levels + 1):
+        rings = np.arange(lv + 1)
+        cells = np.where(rings == 0, 1, 8 * rings)  # cells per ring of the (2l + 1)^2 footprint
+        mean_p = float((np.array(p[lv - 1][: lv + 1]) * cells).sum() / cells.sum())
+        if 2 * (2 * lv + 1) <= min(cfg.width, cfg.height) and (lv == 1 or mean_p >= min_footprint_p):
+            ok.append(lv)
+    return max(ok, default=1)
+
+
+def ring_gain(mass: np.ndarray, p: np.ndarray, window) -> np.ndarray:
+    """(n, h, w): sum over each cell's footprint of mass * p[ring]; p (R + 1,) by ring."""
+    total = mass * p[0]
+    prev = mass
+    for k in range(1, len(p)):
+        if p[k] == 0 and all(v == 0 for v in p[k:]):
+            break
+        win = window(mass, k)
+        total = total + (win - prev) * p[k]
+        prev = win
+    return total
+
+
+class AltitudeRule:
+    """The decision of BeliefPlanner where cfg.levels > 1 (see the module docstring)."""
+
+    def __init__(self, cfg: GridConfig, n: int, rng: np.random.Generator, params: AltitudeParams,
+                 window) -> None:
+        self.cfg, self.n, self.rng, self.params = cfg, n, rng, params
+        self.window = window
+        self.rows = np.arange(n)
+        h, w = cfg.height, cfg.width
+        self.ys, self.xs = np.mgrid[0:h, 0:w]
+        p, _ = cfg.detection.ring_table(cfg.levels)
+        self.p = [(1.0 - (1.0 - np.array(r, np.float32)) ** params.looks).astype(np.float32)
+                  for r in p]  # per level, by ring (p_eff)
+        self.tour = np.full((n, cfg.n_targets * 4, 2), -1, np.int64)
+        self.tour_len = np.zeros(n, np.int64)
+        self.tour_cells = np.zeros((n, h, w), bool)
+        self.goal = np.full((n, 3), -1, np.int64)  # (x, y, level) of the last decision
+        self.top = top_level(cfg, params.max_level, params.min_footprint_p)
+        rmax = self.top
+        viewers = window(np.ones((1, h, w), np.float32), rmax)[0]
+        self.cell_weight = ((2 * rmax + 1) ** 2 / viewers) ** params.edge
+
+    # ------------------------------------------------------------------------ the rule
+    def _values(self, belief, pos: np.ndarray, level: np.ndarray) -> np.ndarray:
+        """(n, L, h, w) value of each (level, cell) goal."""
+        cfg, prm = self.cfg, self.params
+        u = belief.target.astype(np.float32)
+        if cfg.moving:
+            close = u
+            diffuse = u
+        else:
+            # a sighting below `confirm` is still a place to look (from above: cheap), not yet one
+            # to descend to: a false alarm from level 3 is believed at ~0.7 until a look refutes it
+            close = np.where(u > max(prm.confirm, 0.5), u, np.float32(0.0))
+            diffuse = np.maximum(u - close, 0.0)
+        diffuse = diffuse * self.cell_weight
+        if prm.cluster > 0 and not cfg.moving:
+            close = close + prm.cluster * (self.window(close, 2) - close)
+        d = (np.abs(self.xs[None] - pos[:, 0, None, None]) + np.abs(self.ys[None] - pos[:, 1, None, None]))
+        d = d.astype(np.float32)
+        left = np.minimum((belief.unsighted if not cfg.moving else belief.remaining) / prm.return_scale,
+                          1.0).astype(np.float32)
+        out = np.empty((self.n, cfg.levels) + d.shape[1:], np.float32)
+        self._gains = []
+        for lv in range(1, cfg.levels + 1):
+            gain = ring_gain(diffuse, self.p[lv - 1], self.window)
+            self._gains.append(gain)
+            if prm.outer > 0:
+                gain = gain + prm.outer * (self.window(diffuse, lv + 2) - self.window(diffuse, lv))
+            if lv == 1:
+                gain = gain + prm.pickup * close
+            dl = np.abs(lv - level).astype(np.float32)
+            back = np.maximum(level - lv, 0).astype(np.float32) * prm.return_cost * left
+            out[:, lv - 1] = gain / (d + (dl + back)[:, None, None] + prm.travel_offset)
+            if lv > self.top:
+                out[:, lv - 1] = -np.inf
+        # staying where one is (same cell, same level) recovers and reveals nothing new
+        out[self.rows, level - 1, pos[:, 1], pos[:, 0]] = -1.0
+        return out
+
+    def _choose(self, values: np.ndarray) -> np.ndarray:
+        """(n, 3) goals (x, y, level) maximising value, ties at random, the last goal kept
+        where it is as good within `stick`."""
+        v = values + self.rng.random(values.shape).astype(np.float32) * 1e-6
+        g = self.goal
+        has = g[:, 0] >= 0
+        if self.params.stick > 0 and has.any():
+            r = self.rows[has]
+            v[r, g[has, 2] - 1, g[has, 1], g[has, 0]] *= 1.0 + self.params.stick
+        flat = v.reshape(self.n, -1).argmax(axis=1)
+        h, w = self.cfg.height, self.cfg.width
+        lv, cell = np.divmod(flat, h * w)
+        return np.stack([cell % w, cell // w, lv + 1], axis=1)
+
+    # ------------------------------------------------------------------------ the tour
+    def _tour_goals(self, belief, pos: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(m, 2) the next sighted cell of each episode's tour (rows), planning new tours
+        where a cell was sighted that the tour does not hold; -1 where none is left."""
+        sighted = belief.sighted[rows] > 0
+        new = (sighted & ~self.tour_cells[rows]).any(axis=(1, 2))
+        if new.any():
+            self._plan(rows[new], pos[new], sighted[new])
+        cells = self.tour[rows]
+        k = np.arange(cells.shape[1])[None]
+        cx, cy = np.clip(cells[..., 0], 0, None), np.clip(cells[..., 1], 0, None)
+        live = (k < self.tour_len[rows, None]) & sighted[np.arange(len(rows))[:, None], cy, cx]
+        first = np.where(live.any(axis=1), live.argmax(axis=1), -1)
+        out = cells[np.arange(len(rows)), np.maximum(first, 0)].copy()
+        out[first < 0] = -1
+        return out
+
+    def _plan(self, rows: np.ndarray, pos: np.ndarray, sighted: np.ndarray) -> None:
+        counts = sighted.sum(axis=(1, 2))
+        self.tour_cells[rows] = sighted
+        cap = self.tour.shape[1]
+        for k in np.unique(counts):
+            sel = np.flatnonzero(counts == k)
+            r = rows[sel]
+            self.tour[r] = -1
+            self.tour_len[r] = min(int(k), cap)
+            if k == 0:
+                continue
+            cells = np.argwhere(sighted[sel])  # (m * k, 3), sorted by episode
+            xy = np.stack([cells[:, 2], cells[:, 1]], axis=1).reshape(len(sel), k, 2)
+            if k <= TOUR_EXACT:
+                _, order = held_karp(pos[sel], xy, self.rng)
+            else:
+                order = _nearest_order(pos[sel], xy)
+            k = min(int(k), cap)
+            self.tour[r, :k] = np.take_along_axis(xy, order[:, :k, None], axis=1)
+
+    # ------------------------------------------------------------------------ act
+    def act(self, belief, obs: Observation) -> np.ndarray:
+        cfg, prm = self.cfg, self.params
+        pos = np.asarray(obs.positions, dtype=np.int64)
+        level = np.ones(self.n, np.int64) if obs.level is None else np.asarray(obs.level, np.int64)
+        valid = np.asarray(obs.valid)
+        active = np.asarray(obs.active, bool)
+        goal = self._choose(self._values(belief, pos, level))
+        if not cfg.moving:
+            touring = active & (belief.unsighted < prm.tour_below) & (belief.sighted.sum(axis=(1, 2)) > 0)
+            if touring.any():
+                rows = self.rows[touring]
+                tg = self._tour_goals(belief, pos[rows], rows)
+                ok = tg[:, 0] >= 0
+                goal[rows[ok], :2] = tg[ok]
+                goal[rows[ok], 2] = 1
+        self.goal = goal
+        return self._move(pos, level, goal, valid, belief)
+
+    def _move(self, pos: np.ndarray, level: np.ndarray, goal: np.ndarray, valid: np.ndarray,
+              belief) -> np.ndarray:
+        """Climb first, travel (towards the cell whose view from this level reveals more among
+        the shortest-path moves), descend on arrival."""
+        a = np.full(self.n, -1, np.int64)
+        at = np.all(goal[:, :2] == pos, axis=1)
+        up = goal[:, 2] > level
+        down = goal[:, 2] < level
+        a[up] = Action.CLIMB
+        a[~up & at & down] = Action.DESCEND
+        travel = a < 0
+        if travel.any():
+            r = self.rows[travel]
+            a[r] = self._first_move(pos[r], goal[r, :2], level[r], valid[r], belief, r)
+        bad = ~valid[self.rows, a]
+        if bad.any():
+            a[bad] = random_valid(valid[bad], self.rng)
+        return a
+
+    def _first_move(self, pos: np.ndarray, goal: np.ndarray, level: np.ndarray, valid: np.ndarray,
+                    belief, rows: np.ndarray) -> np.ndarray:
+        d0 = np.abs(goal - pos).sum(axis=1)
+        nxt = pos[:, None, :] + DELTAS[None, :4]
+        d1 = np.abs(goal[:, None, :] - nxt).sum(axis=2)
+        closer = (d1 < d0[:, None]) & valid[:, :4]
+        h, w = self.cfg.height, self.cfg.width
+        cx, cy = np.clip(nxt[..., 0], 0, w - 1), np.clip(nxt[..., 1], 0, h - 1)
+        # what a look from the next cell at this level would sight
+        gain = np.zeros(cx.shape, np.float32)
+        for lv in np.unique(level):
+            sel = level == lv
+            gain[sel] = self._gains[lv - 1][rows[sel, None], cy[sel], cx[sel]]
+        key = np.where(closer, self.params.tie_reveal * gain + self.rng.random(gain.shape) * 1e-6, -np.inf)
+        a = key.argmax(axis=1)
+        none = ~closer.any(axis=1)
+        if none.any():
+            a[none] = step_towards(pos[none], goal[none], self.rng)
+        return a
+
+
+def _nearest_order(start: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """(m, k) a nearest-neighbour order through xy (m, k, 2) from start (m, 2)."""
+    m, k = xy.shape[:2]
+    order = np.zeros((m, k), np.int64)
+    done = np.zeros((m, k), bool)
+    cur = start.copy()
+    rows = np.arange(m)
+    for i in range(k):
+        d = np.abs(xy - cur[:, None, :]).sum(axis=2).astype(np.float64)
+        d[done] = np.inf
+        j = d.argmin(axis=1)
+        order[:, i] = j
+        done[rows, j] = True
+        cur = xy[rows, j]
+    return order
