@@ -41,6 +41,8 @@ CLIMB_S = 5.0
 #: takes ~3 s; the take-off command itself waits for the frame of its instant, late on a
 #: loaded machine while a real autopilot flies on)
 CLIMB_GRACE_S = 10.0
+#: ... and wall seconds it is waited for at least
+CLIMB_WAIT_MIN_S = 3.0
 #: the first leg's setpoint goes out this long after the hand-over (held there too)
 LEG_AFTER_S = 0.5
 #: wall seconds to wait for a frame asked for ahead before asking again
@@ -214,9 +216,13 @@ class Pilot:
             # judged on the vehicle's clock, not the wall's: a real autopilot is not held by
             # the companion, and on a loaded machine 3 wall seconds were less than the climb
             # (ArduCopter flight-table, 2 of 20 stopped here while other work ran)
-            late = self.t_offboard + CLIMB_GRACE_S
-            link.wait_for(lambda: self.climbed(self.spec.altitude_m / 2) or self.intake.sim_time_s > late, timeout,
-                          "the take-off's climb")
+            # ... and never sooner than 3 wall seconds (a take-off command resent over a lossy
+            # radio lands seconds of vehicle time late at 10x: 1 in 3 searches through 20 % loss
+            # stopped on the vehicle's clock alone)
+            late, since = self.t_offboard + CLIMB_GRACE_S, time.monotonic()
+            link.wait_for(lambda: self.climbed(self.spec.altitude_m / 2)
+                          or (self.intake.sim_time_s > late and time.monotonic() - since > CLIMB_WAIT_MIN_S),
+                          timeout, "the take-off's climb")
             if not self.climbed(self.spec.altitude_m / 2):
                 d = link.telemetry.local.get("d", math.nan)
                 raise LinkError(f"take-off: not above {self.spec.altitude_m / 2:.1f} m by {late:.1f} s (simulated): "
