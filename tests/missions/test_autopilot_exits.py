@@ -34,7 +34,7 @@ class Backend:
 
 
 BACKENDS = {
-    "ours-ardupilot": Backend("ours-ardupilot", ("--dialect", "ardupilot", "--speedup", "8", "--physics", "kinematic"),
+    "ours-ardupilot": Backend("ours-ardupilot", ("--dialect", "ardupilot", "--speedup", "16", "--physics", "kinematic"),
                               None, True),
     "real-ardupilot": Backend("real-ardupilot", ("--autopilot", "ardupilot", "--speedup", "5"), "ARDUPILOT_SITL", False),
     "real-px4": Backend("real-px4", ("--autopilot", "px4", "--speedup", "5"), "PX4_SITL", True, gcs_fixed=True),

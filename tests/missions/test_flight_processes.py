@@ -42,7 +42,7 @@ def test_three_processes_fly_a_small_search(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_mid_search_lands_and_disarms(tmp_path: Path, sig: signal.Signals) -> None:
-    with sitl_process(tmp_path, 9, "--speedup", "6") as (field_file, gcs, _):
+    with sitl_process(tmp_path, 9, "--speedup", "12") as (field_file, gcs, _):
         run = uavsearch("run", "--field", str(field_file), "--policy", "lawnmower", "--out", str(tmp_path / "run"))
         lines: list[str] = []
         end = time.monotonic() + 180
