@@ -414,19 +414,7 @@ class BeliefState:
         views = np.asarray(obs.views)
         if views.shape[1:] != (3, 3, 3) or len(views) != self.n:
             raise ValueError(f"views must be ({self.n}, 3, 3, 3) grid views (got {views.shape})")
-        first = self.t < 0
-        prev = np.where(first, t, self.t)
-        dt = np.maximum(t - prev, 0)
-        if cfg.moving:
-            # target moves happen on transitions s -> s + 1 with s % period == 0, s in [prev, t)
-            per = cfg.target_period
-            moves = (t + per - 1) // per - (prev + per - 1) // per
-            for k in range(int(moves.max(initial=0))):
-                rows = moves > k
-                mk = None if self.mask is None else self.mask[rows]
-                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows], mk)
-                self.found[rows] = motion_kernel(cfg, self.found[rows], mk)
-        self.age += dt[:, None, None].astype(np.float32)
+        self._advance(t)
         p = self._position(obs)
         self.position = p
         if obs.position_prob is not None:
@@ -515,16 +503,16 @@ class BeliefState:
         """Time passes: ages grow, and moving targets' densities diffuse once per target move
         (transitions s -> s + 1 with s % period == 0, s in [prev, t))."""
         cfg = self.cfg
-        first = self.t < 0
-        prev = np.where(first, t, self.t)
+        prev = np.where(self.t < 0, t, self.t)
         dt = np.maximum(t - prev, 0)
         if cfg.moving:
             per = cfg.target_period
             moves = (t + per - 1) // per - (prev + per - 1) // per
             for k in range(int(moves.max(initial=0))):
                 rows = moves > k
-                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows])
-                self.found[rows] = motion_kernel(cfg, self.found[rows])
+                mk = None if self.mask is None else self.mask[rows]  # the field's cells only
+                self._sighted[rows] = motion_kernel(cfg, self._sighted[rows], mk)
+                self.found[rows] = motion_kernel(cfg, self.found[rows], mk)
         self.age += dt[:, None, None].astype(np.float32)
 
     def _update_soft(self, obs) -> None:

@@ -39,7 +39,10 @@ def _random(cfg: GridConfig, rng: np.random.Generator, agent: np.ndarray) -> np.
     return np.stack([cells % cfg.width, cells // cfg.width], axis=-1).astype(np.int64)
 
 
-def _gaussian(cfg: GridConfig, rng: np.random.Generator, agent: np.ndarray) -> np.ndarray:
+def _gaussian(cfg: GridConfig, rng: np.random.Generator, agent: np.ndarray,
+              mask: np.ndarray | None = None) -> np.ndarray:
+    """Targets drawn round gaussian_mean, redrawn off the grid, on the agent, on another
+    target or (mask: (n, h, w) searchable cells) on a masked cell."""
     n = len(agent)
     out = np.full((n, cfg.n_targets, 2), -1, dtype=np.int64)
     mean = np.asarray(cfg.gaussian_mean, dtype=np.float64)
@@ -50,13 +53,18 @@ def _gaussian(cfg: GridConfig, rng: np.random.Generator, agent: np.ndarray) -> n
                 break
             c = np.rint(rng.normal(mean, cfg.gaussian_sd, size=(todo.size, 2))).astype(np.int64)
             ok = (c[:, 0] >= 0) & (c[:, 0] < cfg.width) & (c[:, 1] >= 0) & (c[:, 1] < cfg.height)
+            if mask is not None:
+                ok &= mask[todo, np.clip(c[:, 1], 0, cfg.height - 1), np.clip(c[:, 0], 0, cfg.width - 1)]
             ok &= ~np.all(c == agent[todo], axis=1)
             if k:
                 ok &= ~np.any(np.all(out[todo, :k] == c[:, None], axis=2), axis=1)
             out[todo[ok], k] = c[ok]
             todo = todo[~ok]
-        else:  # pragma: no cover - only with absurd parameters
-            raise RuntimeError("gaussian placement did not converge; widen gaussian_sd")
+        else:
+            if mask is not None:
+                raise ValueError("gaussian placement found no searchable cell near gaussian_mean on a mask; "
+                                 "move the mean onto the field or widen gaussian_sd")
+            raise RuntimeError("gaussian placement did not converge; widen gaussian_sd")  # pragma: no cover
     return out
 
 
@@ -130,25 +138,7 @@ def place_masked(cfg: GridConfig, rng: np.random.Generator, mask: np.ndarray) ->
         cells = np.argsort(keys, axis=1)[:, : cfg.n_targets]
         return agent, np.stack([cells % cfg.width, cells // cfg.width], axis=-1).astype(np.int64)
     if cfg.distribution == "gaussian":
-        out = np.full((n, cfg.n_targets, 2), -1, dtype=np.int64)
-        mean = np.asarray(cfg.gaussian_mean, dtype=np.float64)
-        for k in range(cfg.n_targets):
-            todo = np.arange(n)
-            for _ in range(10_000):
-                if todo.size == 0:
-                    break
-                c = np.rint(rng.normal(mean, cfg.gaussian_sd, size=(todo.size, 2))).astype(np.int64)
-                ok = (c[:, 0] >= 0) & (c[:, 0] < cfg.width) & (c[:, 1] >= 0) & (c[:, 1] < cfg.height)
-                ok &= mask[todo, np.clip(c[:, 1], 0, cfg.height - 1), np.clip(c[:, 0], 0, cfg.width - 1)]
-                ok &= ~np.all(c == agent[todo], axis=1)
-                if k:
-                    ok &= ~np.any(np.all(out[todo, :k] == c[:, None], axis=2), axis=1)
-                out[todo[ok], k] = c[ok]
-                todo = todo[~ok]
-            else:
-                raise ValueError("gaussian placement found no searchable cell near gaussian_mean on a mask; "
-                                 "move the mean onto the field or widen gaussian_sd")
-        return agent, out
+        return agent, _gaussian(cfg, rng, agent, mask)
     off = lattice_offsets(cfg)
     span = off.max(axis=0)
     ox, oy = np.arange(cfg.width - span[0]), np.arange(cfg.height - span[1])
