@@ -21,6 +21,7 @@ from .actions import DELTAS, LEVEL_DELTAS
 from .config import GridConfig
 from .detection import FLIGHT, FlightModel
 from .episodes import Episodes, detection_rng
+from .masks import blocked_view, neighbour_valid
 from .observations import AGENT_VALUE, LEVEL_VIEW_CHANNELS, MET_VALUE, VIEW_CHANNELS, VISITED_VALUE
 
 
@@ -141,8 +142,6 @@ class BatchGridWorld:
         masked cell is off the map); with levels, stay only for moving targets, climb below the
         top, descend above level 1."""
         if self.mask is not None:  # a masked cell is off the map
-            from .masks import neighbour_valid
-
             if self.cfg.levels == 1:
                 return neighbour_valid(self.mask, self.agent, self.n_actions)
             moves = neighbour_valid(self.mask, self.agent, 4)
@@ -202,8 +201,6 @@ class BatchGridWorld:
         off_cols = np.stack([x == 0, np.zeros(n, dtype=bool), x == w - 1], axis=1)
         v[:, 1] = off_rows[:, :, None] | off_cols[:, None, :]
         if self.mask is not None:  # masked cells read like off-map ones
-            from .masks import blocked_view
-
             v[:, 1] = blocked_view(self.mask, self.agent)
         v[:, 2, 1, 1] = 1
         return v

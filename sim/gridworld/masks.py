@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .actions import DELTAS
+
 #: distance of a cell that cannot be reached (masked, or cut off from the source)
 UNREACHABLE = np.iinfo(np.int32).max // 4
 
@@ -42,8 +44,6 @@ def episode_masks(mask: np.ndarray | None, n: int, h: int, w: int) -> np.ndarray
 def neighbour_valid(mask: np.ndarray, pos: np.ndarray, n_actions: int = 4) -> np.ndarray:
     """(n, n_actions) bool: which moves from pos (n, 2) land on a searchable cell of the map
     (actions f, b, l, r and, with 5, the stay, always valid)."""
-    from .actions import DELTAS
-
     n, h, w = mask.shape
     nxt = pos[:, None, :] + DELTAS[None, :n_actions]
     x, y = nxt[..., 0], nxt[..., 1]
@@ -108,8 +108,6 @@ def step_along(dist_to_goal: np.ndarray, pos: np.ndarray, valid: np.ndarray,
     """A move on a shortest path towards the goal whose distance field (n, h, w) is given:
     among the valid moves (n, >= 4) that reduce the distance, the one with the largest
     `prefer` (n, 4) score, ties at random; -1 where none does (at the goal, or cut off)."""
-    from .actions import DELTAS
-
     n, h, w = dist_to_goal.shape
     nxt = pos[:, None, :] + DELTAS[None, :4]
     cx, cy = np.clip(nxt[..., 0], 0, w - 1), np.clip(nxt[..., 1], 0, h - 1)
