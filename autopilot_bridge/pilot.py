@@ -212,24 +212,16 @@ class Pilot:
         link.takeoff(dialect.takeoff_altitude(link.telemetry.home["alt"], self.spec.altitude_m))
         if timed:
             self._held_at(self.t_offboard, timeout)
-            # climbing by then (the last decimetres come slowly; OFFBOARD's setpoint finishes them)
-            # judged on the vehicle's clock, not the wall's: a real autopilot is not held by
-            # the companion, and on a loaded machine 3 wall seconds were less than the climb
-            # (ArduCopter flight-table, 2 of 20 stopped here while other work ran)
-            # ... and never sooner than 3 wall seconds (a take-off command resent over a lossy
-            # radio lands seconds of vehicle time late at 10x: 1 in 3 searches through 20 % loss
-            # stopped on the vehicle's clock alone)
-            late, since = self.t_offboard + CLIMB_GRACE_S, time.monotonic()
-            link.wait_for(lambda: self.climbed(self.spec.altitude_m / 2)
+            # half-way up by then (OFFBOARD's setpoint finishes the last decimetres), judged on
+            # the vehicle's clock (a real autopilot is not held by the companion: on a loaded
+            # machine 3 wall seconds were less than the climb) and never in under 3 wall seconds
+            # (a take-off command resent over a lossy radio lands seconds of vehicle time late)
+            half, late, since = self.spec.altitude_m / 2, self.t_offboard + CLIMB_GRACE_S, time.monotonic()
+            link.wait_for(lambda: self.climbed(half)
                           or (self.intake.sim_time_s > late and time.monotonic() - since > CLIMB_WAIT_MIN_S),
                           timeout, "the take-off's climb")
-            if not self.climbed(self.spec.altitude_m / 2):
-                d = link.telemetry.local.get("d", math.nan)
-                raise LinkError(f"take-off: not above {self.spec.altitude_m / 2:.1f} m by {late:.1f} s (simulated): "
-                                f"{self.search_d + self.spec.altitude_m - d:.2f} m over home (local down {d:.2f}, "
-                                f"home at {self.search_d + self.spec.altitude_m:.2f}), mode {link.telemetry.mode}, "
-                                f"{'armed' if link.telemetry.armed else 'disarmed'}; it said: "
-                                f"{' / '.join(link.telemetry.statustext[-4:]) or 'nothing'}")
+            if not self.climbed(half):
+                raise LinkError(f"take-off: not above {half:.1f} m by {late:.1f} s (simulated): {self._climb_state()}")
         else:
             link.wait_for(lambda: self.climbed(self.spec.altitude_m - 0.4), timeout,
                           f"take-off to {self.spec.altitude_m} m")
@@ -248,6 +240,15 @@ class Pilot:
         self.start_stream(here)
         if timed:
             self._held_at(t_leg, timeout)  # the decision loop's first leg starts here
+
+    def _climb_state(self) -> str:
+        """Where a stopped take-off left the vehicle, for the operator: height over home, mode,
+        armed, and what the autopilot last said."""
+        tel = self.link.telemetry
+        d, home_d = tel.local.get("d", math.nan), self.search_d + self.spec.altitude_m
+        said = " / ".join(tel.statustext[-4:]) or "nothing"
+        return (f"{home_d - d:.2f} m over home (local down {d:.2f}, home at {home_d:.2f}), mode {tel.mode}, "
+                f"{'armed' if tel.armed else 'disarmed'}; it said: {said}")
 
     def start_stream(self, here: np.ndarray) -> None:
         """Hold the vehicle at `here` (local north, east) at the search height: the setpoint
