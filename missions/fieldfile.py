@@ -80,8 +80,8 @@ def read_field(path: Path) -> FieldSpec:
         d = json.loads(Path(path).read_text())
     except FileNotFoundError as e:
         raise FieldFileError(f"field file {path} does not exist (uavsearch sitl writes it: --field-out)") from e
-    except (OSError, json.JSONDecodeError) as e:
-        raise FieldFileError(f"field file {path} is not readable JSON ({e})") from e
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise FieldFileError(f"field file {path} is not readable JSON ({' '.join(str(e).split())[:160]})") from e
     if not isinstance(d, dict) or d.get("kind") != KIND:
         raise FieldFileError(f"{path} is not a uavsearch field file (kind {d.get('kind') if isinstance(d, dict) else None!r})")
     try:
