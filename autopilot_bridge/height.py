@@ -55,3 +55,13 @@ class FlownHeight:
         flown = home_down - d[0] if d is not None else self.altitude_m()
         self.camera_m = max(flown - CAMERA_BELOW_M, 0.5)
         return self.camera_m
+
+
+def footprint_margin_m(level: int, altitude_m: float = 3.5, fov_deg: float = 100.0, cell_m: float = 2.0) -> float:
+    """How far (m) the camera's frame reaches beyond the (2 l + 1)^2 cells level l sees, flown
+    at its height h(l) over a flat field (negative: the frame does not cover the window). 100
+    degrees: 1.1 m at level 1 (3.5 m), 1.9 m at level 2 (5.83 m), 2.7 m at level 3 (8.17 m)."""
+    from .edges import half_footprint_m
+
+    h = altitude_m if level == 1 else level_height_m(level, altitude_m)
+    return half_footprint_m(h - CAMERA_BELOW_M, fov_deg) - (level + 0.5) * cell_m
