@@ -6,12 +6,25 @@ from pathlib import Path
 
 import pytest
 
+from missions.fieldfile import FieldSpec, read_field, write_field
 from missions.flight import fly_search
-from sim.gridworld import GridConfig, level_height_m
+from sim.gridworld import DetectionTable, GridConfig, level_height_m
+from sim.gridworld.geodesy import HomePosition
 
-pytestmark = pytest.mark.slow
+
+def test_the_field_file_carries_the_levels_and_their_table(tmp_path: Path) -> None:
+    """`sitl --levels` tells `run --field` to fly them, with the table the grid flies."""
+    table = DetectionTable.perfect(3)
+    grid = GridConfig(width=12, height=8, n_targets=4, levels=2, detection=table)
+    origin = HomePosition(51.45, -2.59, 30.0)
+    write_field(tmp_path / "levels.json", FieldSpec(origin, grid), 0)
+    assert read_field(tmp_path / "levels.json").grid == grid
+    write_field(tmp_path / "one.json", FieldSpec(origin, GridConfig()), 0)
+    assert "levels" not in (tmp_path / "one.json").read_text(), "one level: the file as before"
+    assert read_field(tmp_path / "one.json").grid == GridConfig()
 
 
+@pytest.mark.slow
 def test_a_search_with_three_levels_flies_the_grid_worlds(tmp_path: Path) -> None:
     grid = GridConfig(width=10, height=10, n_targets=3, levels=3)  # the measured detection table
     r = fly_search(tmp_path, seed=1, speedup=20.0, grid=grid, free_ports=True, plot=False)
