@@ -32,6 +32,7 @@ from sim.gridworld import DELTAS, GridConfig
 from ..base import Observation
 from ..belief.shared import CommsModel, SharedBelief
 from ..planner import BeliefPlanner, PlannerParams
+from ..planner.planner import _window
 from .base import TeamObservation, TeamPolicy, separate
 
 
@@ -98,7 +99,7 @@ class TeamBeliefPlanner(TeamPolicy):
         """(goals (n, N, 2), the order the agents chose in (n, N))."""
         p, tp, b = self.params, self.team, self.shared.belief
         n, k, (h, w) = self.n, self.k, (self.cfg.height, self.cfg.width)
-        reveal_b = self.core._reveal()  # (B, h, w), today's rule on every belief row
+        reveal_b = self._reveal()  # (B, h, w), today's rule on every belief row
         self._reveal_b = reveal_b
         pick_b = b.sighted if not self.cfg.moving else b.target
         rev = reveal_b[self._brow].astype(np.float64)  # (n, N, h, w): each agent's own view of it
@@ -133,6 +134,21 @@ class TeamBeliefPlanner(TeamPolicy):
             rev = rev * np.where(near, 1.0 - tp.claim, 1.0)[:, None]
             pick[self.rows, :, gy, gx] = 0.0
         return goal, order
+
+    def _reveal(self) -> np.ndarray:
+        """Today's reveal rule on every belief row; with imperfect sharing (static targets), the
+        unseen mass of cells another agent's view has shown (SharedBelief.covered: known from
+        the beacons even where the view itself is late or lost) left out: whatever is there, the
+        agent that saw it knows it and collects it, so it is no one else's to reveal."""
+        cov = self.shared.covered
+        if cov is None or self.cfg.moving:
+            return self.core._reveal()
+        b, p = self.shared.belief, self.params
+        mass = (b.target - b.sighted) * self.core.cell_weight * ~cov
+        near = _window(mass, 1, self.core._work)
+        if p.outer > 0:
+            near = near + p.outer * (_window(mass, 2, self.core._work) - near)
+        return near
 
     def _moves(self, pos: np.ndarray, goal: np.ndarray, order: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """Shortest-path moves towards the goals, the one whose next view reveals more first,
