@@ -24,6 +24,8 @@ from . import TEAM_POLICIES, evaluate_team, make_team_policy
 FLEET_SETTINGS: tuple[tuple[str, GridConfig], ...] = (
     ("random 20x20/10", GridConfig(width=20, height=20, n_targets=10)),
     ("random 10x10/5", GridConfig()),
+    ("random walk 10x10/5", GridConfig(motion="random_walk", map_variant="spatiotemporal")),
+    ("herd 10x10/5", GridConfig(distribution="equidistant", motion="herd", map_variant="spatiotemporal")),
 )
 #: the lossy link of the issue's goal: 30 % of messages lost, 2 joint steps late (the beacons'
 #: positions inform the belief, docs/fleet.md)
