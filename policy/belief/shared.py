@@ -10,12 +10,15 @@ from beside it after that sees a found target (found > 0 there), before it an un
 Communication (CommsModel): an agent's own observation enters its belief at once; another
 agent's observation of step s arrives at step s + delay, or never (lost with probability loss,
 one draw per message, seeded). Then every agent keeps its own copy of the belief: a
-BeliefState with n * N rows (row e * N + i: agent i of episode e). A late observation is folded
-in at the time it arrives, as if taken then: for static targets that is exact (a cell's targets
-do not change, only whether they are found, which the attribution rule reads from the belief);
-for moving targets it is an approximation (the targets moved on since). Agents' positions are
-assumed known to the team at all times (a short-range beacon, as ADS-B or Remote ID: the
-separation rule needs them); only the observations are delayed or lost.
+BeliefState with n * N rows (row e * N + i: agent i of episode e). A late observation of static
+targets is folded in at the time it arrives, as if taken then: exact (a cell's targets do not
+change, only whether they are found, which the attribution rule reads from the belief). For
+moving targets a late view is dropped (folded as if current it misled the filter: the targets
+moved on). Agents' positions are assumed known to the team at all times (a short-range beacon,
+as ADS-B or Remote ID: the separation rule needs them); only the observations are delayed or
+lost. With CommsModel.beacons the positions also inform each copy (static targets): the cells
+other agents' views showed are theirs to report (covered), the cells they stood on hold no
+unfound target (_settle).
 Perfect sharing (delay 0, loss 0) keeps one copy per episode (n rows): the same numbers as
 N copies fed the same messages, N times cheaper.
 """

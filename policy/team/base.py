@@ -45,8 +45,8 @@ class TeamPolicy(ABC):
 def separate(positions: np.ndarray, prefs: np.ndarray, valid: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
     """The no-conflict rule of the team policies: (n, N) actions from per-action preferences
     prefs (n, N, A) (higher first). Agents choose in `order` ((n, N) agent indices, default
-    0..N-1); each takes its most preferred valid move whose cell is neither another agent's
-    current cell nor a cell an earlier agent has taken (so no two agents in one cell and no
+    0..N-1); each takes its most preferred valid move whose cell is neither the current cell of
+    an agent that has not chosen yet nor a cell an earlier agent has taken (so no two agents in one cell and no
     swap through each other; an agent may follow one that has already moved on). An agent
     with no such move (boxed in at a corner) takes its best valid one, which the world refuses
     (it stays). Why this form: N is small, so N sequential rounds vectorised over episodes."""

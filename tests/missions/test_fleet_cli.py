@@ -19,3 +19,14 @@ def test_eval_agents_json_reports_makespan_beside_todays_fields() -> None:
         assert cols["mean_makespan"] == cols["mean_moves"] and "success_pct" in cols
     r = CliRunner().invoke(app, ["eval", "--agents", "2", "-p", "ns"])
     assert r.exit_code != 0 and "unknown team policy" in " ".join(r.output.replace("│", " ").split())
+
+
+def test_quality_agents_writes_the_fleet_table(tmp_path) -> None:
+    r = CliRunner().invoke(app, ["quality", "--agents", "2", "--setting", "random 10x10/5", "--episodes", "10",
+                                 "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "fleet_search.json").read_text())
+    cells = doc["table"]["random 10x10/5"]
+    assert {"single belief x1", "belief x2", "belief, lossy x2", "belief-independent x2"} <= set(cells)
+    assert doc["git_revision"] and doc["test_seed"] == 0
+    assert "N=2 / single belief" in (tmp_path / "fleet_search.md").read_text()
