@@ -33,6 +33,12 @@ def register(app: typer.Typer) -> None:
         field: Path | None = typer.Option(
             None, "--field", help="A polygon field (field.json from `uavsearch field`): the grid is its grid, "
             "targets and moves on its searchable cells (--width/--height are ignored)."),
+        agents: int = typer.Option(1, "--agents", min=1, help="Team size N (issue 29, docs/fleet.md): N UAVs "
+                                   "in each episode; policies: belief, belief-independent, lawnmower-strips."),
+        comms_loss: float = typer.Option(0.0, "--comms-loss", help="With --agents: share of messages lost."),
+        comms_delay: int = typer.Option(0, "--comms-delay", min=0, help="With --agents: message delay (steps)."),
+        comms_history: int = typer.Option(1, "--comms-history", min=1,
+                                          help="With --agents: observations each message repeats."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -40,6 +46,9 @@ def register(app: typer.Typer) -> None:
         from policy.baselines import known_policies
         from policy.evaluation import run_eval
 
+        if agents > 1:
+            _team_eval(policy, grid, episodes, seed, agents, comms_loss, comms_delay, comms_history, as_json)
+            return
         known = known_policies()
         unknown = [p for p in policy if p not in known]
         if unknown:
@@ -64,6 +73,25 @@ def register(app: typer.Typer) -> None:
             sys.stdout.write("\n")
         elif out is not None:
             typer.echo(f"report: {out.resolve()}")
+
+
+def _team_eval(policy: list[str], grid: GridConfig, episodes: int, seed: int, agents: int, loss: float,
+               delay: int, history: int, as_json: bool) -> None:
+    """`eval --agents N`: the team policies on the same episodes (policy.team.quality)."""
+    from policy.belief.shared import CommsModel
+    from policy.team.quality import run_team_eval
+
+    try:
+        doc = run_team_eval(policy, grid, episodes, seed, agents, CommsModel(delay=delay, loss=loss, history=history))
+    except ValueError as e:
+        raise typer.BadParameter(str(e)) from e
+    if as_json:
+        json.dump(doc, sys.stdout, indent=2, default=float)
+        sys.stdout.write("\n")
+        return
+    for name, c in doc["policies"].items():
+        typer.echo(f"{name} x{agents}: mean makespan {c['mean_makespan']:.1f}, p90 {c['p90_makespan']:.0f}, "
+                   f"all found {c['success_pct']:.1f} %, blocked {c['blocked_mean']:.2f}")
 
 
 def _field_grid(path: Path, grid: GridConfig, echo: bool = True):

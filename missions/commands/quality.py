@@ -36,8 +36,23 @@ def register(app: typer.Typer) -> None:
         masked_fields: int = typer.Option(2000, "--masked-fields", min=1, help="With --masked: fields per class."),
         masked_area: int = typer.Option(100, "--masked-area", min=6, help="With --masked: searchable cells per field."),
         mask_class: list[str] | None = typer.Option(None, "--mask-class", help="With --masked: classes (default all)."),
+        agents: list[int] | None = typer.Option(
+            None, "--agents", help="Instead: the fleet table (issue 29) for these team sizes (repeat: --agents 2 "
+            "--agents 4) -> OUT/fleet_search.md + .json"),
     ) -> None:
         """Search quality table: mean moves, ratio to oracle, p90, all found %, (g)."""
+        if agents:
+            from policy.team.quality import run_fleet_quality, write_fleet_quality
+
+            try:
+                doc = run_fleet_quality(tuple(agents), episodes, seed, workers, tuple(setting) if setting else None)
+            except ValueError as e:
+                raise typer.BadParameter(str(e)) from e
+            command = (f"uavsearch quality {' '.join(f'--agents {k}' for k in agents)} --episodes {episodes} "
+                       f"--seed {seed} --workers {workers}")
+            for p in write_fleet_quality(doc, out, command):
+                typer.echo(str(p))
+            return
         if masked:
             from policy.evaluation.masked_quality import (
                 MaskedQualityConfig,

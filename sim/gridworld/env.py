@@ -74,3 +74,12 @@ class GridSearchEnv(gym.Env):
             grid[y, x] = "x" if f else "T"
         grid[w.agent[0, 1], w.agent[0, 0]] = "A"
         return "\n".join("".join(r) for r in grid)
+
+
+#: gymnasium's id for the grid world: `gymnasium.make(ENV_ID, cfg=GridConfig(...))` gives GridSearchEnv,
+#: `gymnasium.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")` the native
+#: batched GridSearchVectorEnv (sim.gridworld.vector)
+ENV_ID = "uavsearch/GridSearch-v0"
+if ENV_ID not in gym.registry:
+    gym.register(ENV_ID, entry_point="sim.gridworld.env:GridSearchEnv",
+                 vector_entry_point="sim.gridworld.vector:GridSearchVectorEnv")
