@@ -68,12 +68,20 @@ class GridSearchEnv(gym.Env):
         if self._world is None or self.render_mode != "ansi":
             return None
         w = self._world
-        grid = np.full((self.cfg.height, self.cfg.width), ".", dtype="<U1")
-        grid[w.visited[0]] = "o"
-        for (x, y), f in zip(w.targets()[0], w.found[0], strict=True):
-            grid[y, x] = "x" if f else "T"
-        grid[w.agent[0, 1], w.agent[0, 0]] = "A"
-        return "\n".join("".join(r) for r in grid)
+        return ansi_grid(w, [(int(w.agent[0, 0]), int(w.agent[0, 1]), "A")])
+
+
+def ansi_grid(world, agents: list[tuple[int, int, str]]) -> str:
+    """Episode 0 of a batched world as text: visited 'o', unfound 'T', found 'x', then each
+    agent's (x, y, label) on top (the single agent's 'A', a team's indices)."""
+    h, w_ = world.visited.shape[1:]
+    grid = np.full((h, w_), ".", dtype="<U1")
+    grid[world.visited[0]] = "o"
+    for (x, y), f in zip(world.targets()[0], world.found[0], strict=True):
+        grid[y, x] = "x" if f else "T"
+    for x, y, label in agents:
+        grid[y, x] = label
+    return "\n".join("".join(r) for r in grid)
 
 
 #: gymnasium's id for the grid world: `gymnasium.make(ENV_ID, cfg=GridConfig(...))` gives GridSearchEnv,

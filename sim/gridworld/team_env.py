@@ -15,7 +15,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from .config import GridConfig
-from .env import GridSearchEnv
+from .env import GridSearchEnv, ansi_grid
 from .episodes import sample_episodes
 from .team import TeamGridWorld, check_team, team_starts
 
@@ -83,10 +83,4 @@ class TeamSearchParallelEnv(ParallelEnv):
         if self._world is None or self.render_mode != "ansi":
             return None
         w = self._world
-        grid = np.full((self.cfg.height, self.cfg.width), ".", dtype="<U1")
-        grid[w.visited[0]] = "o"
-        for (x, y), f in zip(w.targets()[0], w.found[0], strict=True):
-            grid[y, x] = "x" if f else "T"
-        for i, (x, y) in enumerate(w.agents[0]):
-            grid[y, x] = str(i % 10)
-        return "\n".join("".join(r) for r in grid)
+        return ansi_grid(w, [(int(x), int(y), str(i % 10)) for i, (x, y) in enumerate(w.agents[0])])
