@@ -38,6 +38,9 @@ class FlightJob:
     #: who flies: our SITL vehicle, or a real ardupilot / px4 binary on our world (sim.bridges)
     autopilot: str = "ours"
     camera: str = "mavlink"  # mavlink | video (the SITL's RTP/H.264 stream, decoded by PyAV)
+    #: a real field's field.json (`uavsearch field`): flown inside its polygon (our vehicle);
+    #: None, the rectangle
+    field: str | None = None
 
     def __post_init__(self) -> None:
         if self.speedup < 0:
@@ -52,11 +55,17 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
     """One flight in this worker's SITL instance; the row of the table."""
     from missions.flight import fly_search
 
+    pf = None
+    if job.field is not None:
+        from missions.field_run import load_polygon
+
+        pf = load_polygon(Path(job.field))
     with tempfile.TemporaryDirectory(prefix="flight-") as tmp:
         out = Path(job.out) / f"seed{job.seed}" if job.out else Path(tmp)
         r = fly_search(out, seed=job.seed, speedup=job.speedup, max_moves=job.max_moves, policy=job.policy,
                        gps_sigma_m=job.gps_sigma_m, visit_map=job.visit_map, plot=job.out is not None,
-                       free_ports=True, autopilot=job.autopilot, camera=job.camera)
+                       free_ports=True, autopilot=job.autopilot, camera=job.camera,
+                       **({} if pf is None else {"field": pf}))
     keep = ("policy", "moves", "grid_moves", "flight_grid_ratio", "optimal_moves", "believed_found", "truly_found",
             "targets", "schedule_slips", "late_frames", "late_inputs", "lockstep_timeouts", "frames_missing", "nees_mean",
             "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells")
@@ -64,7 +73,7 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
     cap = job.max_moves if job.max_moves is not None else int(r["config"]["t_e"])
     capped = r["moves"] >= cap and r["believed_found"] < r["targets"]
     return {"seed": job.seed, "gps_sigma_m": job.gps_sigma_m, "visit_map": job.visit_map, "capped": capped,
-            **{k: r[k] for k in keep}}
+            **{k: r[k] for k in keep}, **({} if pf is None else {"field_checks": r["field_checks"]})}
 
 
 def fly_many(jobs: list[FlightJob], workers: int = 2) -> list[dict[str, Any]]:
@@ -114,7 +123,28 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
         "late_inputs": int(sum(r.get("late_inputs", 0) for r in ok)),
         "goal_met": bool(len(ratios) and not any(r.get("capped") for r in ok) and len(ok) == len(rows)
                          and ratios.mean() <= GOAL_MEAN_RATIO and ratios.max() <= GOAL_MAX_RATIO),
+        **_field_summary(rows, ok, ratios),
     }
+
+
+#: issue 28's goal on a real field: every target truly found, nothing off the field or in a
+#: no-fly zone (setpoints, fence, truth), and the mean flight/grid ratio at most this
+GOAL_FIELD_MEAN_RATIO = 1.1
+#: the field checks (missions.field_checks) summed over flights; each must be 0
+FIELD_ZERO = ("setpoints_outside_fence", "setpoints_off_field", "breaches", "fence_rejections", "true_off_field")
+
+
+def _field_summary(rows: list[dict[str, Any]], ok: list[dict[str, Any]], ratios: np.ndarray) -> dict[str, Any]:
+    """Flights over a real field: the checks summed (over every flight, errors included) and
+    issue 28's goal; nothing for flights over the rectangle."""
+    checked = [r["field_checks"] for r in rows if "field_checks" in r]
+    if not checked:
+        return {}
+    totals = {k: int(sum(c[k] for c in checked)) for k in ("setpoints", "setpoints_meant", *FIELD_ZERO)}
+    all_found = bool(ok) and all(r["truly_found"] == r["targets"] for r in ok)
+    met = bool(len(ok) == len(rows) and all_found and not any(totals[k] for k in FIELD_ZERO)
+               and len(ratios) and ratios.mean() <= GOAL_FIELD_MEAN_RATIO)
+    return {"field_checks": totals, "all_truly_found": all_found, "field_goal_met": met}
 
 
 #: resamples of the bootstrap interval of the mean ratio (seeded: the same rows, the same interval)
@@ -146,22 +176,36 @@ def over_interval(k: int, n: int) -> list[float] | None:
 
 def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float = 10.0,
                    policy: str | None = None, max_moves: int | None = None, autopilot: str = "ours",
-                   camera: str = "mavlink") -> dict[str, Any]:
+                   camera: str = "mavlink", field: Path | None = None) -> dict[str, Any]:
     """Fly every seed, compare with the grid world, write out/flight_vs_grid.{md,json}
-    (flight_vs_grid_<autopilot>.* when a real autopilot flies)."""
+    (flight_vs_grid_<autopilot>.* when a real autopilot flies; flight_vs_grid_field_<name>.*
+    over a real field, `field` its field.json, named by its folder)."""
     from missions.flight_policy import FLIGHT_POLICY
 
     t0 = time.monotonic()
-    rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera)
+    fpath = None if field is None else str(Path(field))
+    rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera,
+                               field=fpath)
                      for s in seeds], workers)
     summary = summarise(rows)
+    extra: dict[str, Any] = {}
+    command = "python -m missions flight-table"
+    if field is not None:
+        from missions.field_run import load_polygon
+
+        pf = load_polygon(Path(field))
+        extra = {"field": {"file": fpath, "source": pf.source, "heading_deg": pf.heading_deg, "width": pf.width,
+                           "height": pf.height, "searchable_cells": pf.searchable_cells}}
+        command += f" --field {fpath}"
     doc = stamp({"seeds": seeds, "speedup": speedup, "workers": workers, "policy": policy or FLIGHT_POLICY,
                  "max_moves": max_moves, "visit_map": "probabilistic", "companion_lockstep": autopilot == "ours",
-                 "autopilot": autopilot, "camera": camera},
+                 "autopilot": autopilot, "camera": camera, **extra},
                  seeds[0] if seeds else None, summary=summary, rows=rows, wall_s=time.monotonic() - t0,
-                 cpus=os.cpu_count(), command="python -m missions flight-table")
+                 cpus=os.cpu_count(), command=command)
     stem = "flight_vs_grid" + ("" if autopilot == "ours" else f"_{autopilot}") + ("" if camera == "mavlink" else
                                                                                    f"_{camera}")
+    if field is not None:
+        stem += f"_field_{Path(field).resolve().parent.name}"
     write_result(out, stem, doc, render_md(doc))
     return doc
 
@@ -190,9 +234,29 @@ def render_md(doc: dict[str, Any]) -> str:
         "",
         *_summary_lines(s),
         "",
+        *_field_lines(doc),
         *_row_lines(rows),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _field_lines(doc: dict[str, Any]) -> list[str]:
+    """Over a real field: which, and its checks against issue 28's goal (nothing otherwise)."""
+    s, f = doc["summary"], doc["config"].get("field")
+    if f is None or "field_checks" not in s:
+        return []
+    c = s["field_checks"]
+    return [
+        f"Real field `{f['file']}` ({f['source']}): {f['width']} x {f['height']} grid at {f['heading_deg']:.2f} deg, "
+        f"{f['searchable_cells']} searchable cells. **Issue 28's goal (every target truly found, nothing off the "
+        f"field, mean flight/grid <= {GOAL_FIELD_MEAN_RATIO}): {'met' if s['field_goal_met'] else 'NOT met'}**. "
+        f"All truly found: {s['all_truly_found']}. Setpoints the vehicle heard: {c['setpoints']}, outside the "
+        f"uploaded fence: {c['setpoints_outside_fence']}; places the {c['setpoints_meant']} setpoints sent the "
+        f"vehicle truly, off the field or in a no-fly zone: {c['setpoints_off_field']}; position estimates "
+        f"outside the fence (breaches): {c['breaches']}; the vehicle's fence rejections: {c['fence_rejections']}; "
+        f"simulator ticks the vehicle truly was off the field or over a no-fly zone: {c['true_off_field']}.",
+        "",
+    ]
 
 
 def _summary_lines(s: dict[str, Any]) -> list[str]:

@@ -31,15 +31,29 @@ def register(app: typer.Typer) -> None:
         camera: str = typer.Option(
             "mavlink", "--camera", help="Frames from the MAVLink camera component (mavlink) or the SITL's RTP/H.264 "
                                         "stream decoded by PyAV (video; our vehicle only)."),
+        field: Path | None = typer.Option(
+            None, "--field", help="A real field's field.json (`uavsearch field`): every flight searches inside its "
+                                  "polygon (our vehicle), checked for setpoints, breaches and true positions off it."),
     ) -> None:
         """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
         from missions.flight_table import flight_vs_grid
+
+        if field is not None:
+            from missions.field_run import load_polygon
+
+            if autopilot != "ours":
+                raise typer.BadParameter("a real field is flown by our vehicle (--autopilot ours)", param_hint="--field")
+            try:
+                load_polygon(field)
+            except ValueError as e:
+                raise typer.BadParameter(str(e), param_hint="--field") from e
 
         if autopilot not in ("ours", "ardupilot", "px4"):
             raise typer.BadParameter(f"{autopilot!r}: expected ours, ardupilot or px4", param_hint="--autopilot")
         if camera not in ("mavlink", "video") or (camera == "video" and autopilot != "ours"):
             raise typer.BadParameter(f"{camera!r}: mavlink, or video with --autopilot ours", param_hint="--camera")
-        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot, camera)
+        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot, camera,
+                             **({} if field is None else {"field": field}))
         s = doc["summary"]
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")
