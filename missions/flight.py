@@ -16,7 +16,8 @@ from provenance import atomic_open, atomic_write_json, stamp
 from sim.gridworld import GridConfig
 
 
-def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: np.ndarray, title: str) -> None:
+def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: np.ndarray, title: str,
+          mask: np.ndarray | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -29,6 +30,9 @@ def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: 
     ax.set_yticks(range(grid.height))
     ax.grid(True, color="0.85")
     ax.set_facecolor((0.86, 0.93, 0.82))
+    if mask is not None:  # a real field's cells not searched (off it, or in a no-fly zone): grey
+        ax.imshow(np.where(np.asarray(mask)[..., None], [0.86, 0.93, 0.82, 0.0], [0.55, 0.55, 0.55, 0.8]),
+                  extent=(-0.5, grid.width - 0.5, grid.height - 0.5, -0.5), interpolation="nearest", zorder=0)
     c = np.array(cells)
     if len(track):
         ax.plot(track[:, 0], track[:, 1], "-", color="tab:blue", alpha=0.45, lw=1, label="true track (physics)")
@@ -313,7 +317,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
 
         path = np.stack([truth[::5, 2] / 2.0, -truth[::5, 1] / 2.0], axis=1) if len(truth) else tr
         _plot(out / "search.png", grid, targets, log.cells, path,
-              f"{moves} moves (grid world {in_grid}, optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)")
+              f"{moves} moves (grid world {in_grid}, optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)",
+              mask=None if area is None else area.mask)
         frames = list(service.kept_frames)
         if service.last_frame is not None and (not frames or frames[-1][0] != service.last_frame[0]):
             frames.append(service.last_frame)
