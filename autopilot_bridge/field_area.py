@@ -89,9 +89,14 @@ class FieldArea:
         other = 1 - axis
         guess = float(camera_ne[axis]) + offset_m
         across = float(camera_ne[other])
-        for pos, lo, hi in self._borders[axis][side]:
+        for a_pos, b_pos, a_across, b_across in self._borders[axis][side]:
+            lo, hi = min(a_across, b_across), max(a_across, b_across)
             if hi < across - reach_m or lo > across + reach_m:
                 continue
+            # the edge's place along the axis where the camera is across it (an edge up to
+            # PARALLEL_DEG off the axis moves by 1.2 m along a 45 m side)
+            k = min(max((across - a_across) / (b_across - a_across), 0.0), 1.0)
+            pos = a_pos + (b_pos - a_pos) * k
             d = abs(pos - guess)
             if d < best_d:
                 best, best_d = pos, d
@@ -100,7 +105,7 @@ class FieldArea:
 
 def _borders(ring: np.ndarray) -> tuple:
     """Per axis (0: edges running across north, 1: across east), per side (+1, -1): the ring's
-    edges within PARALLEL_DEG of the other axis as (position along the axis, span across it)."""
+    edges within PARALLEL_DEG of the other axis as (its ends along the axis, its ends across it)."""
     import shapely
 
     poly = shapely.Polygon(ring[:, ::-1])  # shapely's x = east, y = north
@@ -112,14 +117,12 @@ def _borders(ring: np.ndarray) -> tuple:
             other = 1 - axis
             if abs(d[other]) < 1e-9 or abs(d[axis]) > tol * abs(d[other]):
                 continue
-            pos = float((a[axis] + b[axis]) / 2)
             mid = (a + b) / 2
             probe = mid.copy()
             probe[axis] -= 0.3  # a step towards lower values along the axis: inside means side +1
             inside_below = bool(shapely.contains_xy(poly, probe[1], probe[0]))
             side = 1 if inside_below else -1
-            lo, hi = sorted((float(a[other]), float(b[other])))
-            out[axis][side].append((pos, lo, hi))
+            out[axis][side].append((float(a[axis]), float(b[axis]), float(a[other]), float(b[other])))
     return out
 
 
