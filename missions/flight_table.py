@@ -127,11 +127,11 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
     }
 
 
-#: issue 28's goal on a real field: every target truly found, nothing off the field or in a
-#: no-fly zone (setpoints, fence, truth), and the mean flight/grid ratio at most this
+#: issue 28's goal on a real field: every target truly found, no setpoint off the field or in a
+#: no-fly zone, no fence breach, and the mean flight/grid ratio at most this
 GOAL_FIELD_MEAN_RATIO = 1.1
-#: the field checks (missions.field_checks) summed over flights; each must be 0
-FIELD_ZERO = ("setpoints_outside_fence", "setpoints_off_field", "breaches", "fence_rejections", "true_off_field")
+#: the field checks (missions.field_checks) summed over flights that the goal wants 0
+FIELD_ZERO = ("setpoints_outside_fence", "setpoints_off_field", "breaches", "fence_rejections")
 
 
 def _field_summary(rows: list[dict[str, Any]], ok: list[dict[str, Any]], ratios: np.ndarray) -> dict[str, Any]:
@@ -140,7 +140,11 @@ def _field_summary(rows: list[dict[str, Any]], ok: list[dict[str, Any]], ratios:
     checked = [r["field_checks"] for r in rows if "field_checks" in r]
     if not checked:
         return {}
-    totals = {k: int(sum(c[k] for c in checked)) for k in ("setpoints", "setpoints_meant", *FIELD_ZERO)}
+    totals = {k: int(sum(c.get(k, 0) for c in checked))
+              for k in ("setpoints", "setpoints_meant", "setpoints_outside_rings", *FIELD_ZERO, "true_off_field")}
+    # beside the goal: where the vehicle truly went (its position error, not a setpoint)
+    totals["true_off_field_flights"] = int(sum(c["true_off_field"] > 0 for c in checked))
+    totals["true_off_field_max_m"] = float(max(c.get("true_off_field_max_m", 0.0) for c in checked))
     all_found = bool(ok) and all(r["truly_found"] == r["targets"] for r in ok)
     met = bool(len(ok) == len(rows) and all_found and not any(totals[k] for k in FIELD_ZERO)
                and len(ratios) and ratios.mean() <= GOAL_FIELD_MEAN_RATIO)
@@ -248,13 +252,17 @@ def _field_lines(doc: dict[str, Any]) -> list[str]:
     c = s["field_checks"]
     return [
         f"Real field `{f['file']}` ({f['source']}): {f['width']} x {f['height']} grid at {f['heading_deg']:.2f} deg, "
-        f"{f['searchable_cells']} searchable cells. **Issue 28's goal (every target truly found, nothing off the "
-        f"field, mean flight/grid <= {GOAL_FIELD_MEAN_RATIO}): {'met' if s['field_goal_met'] else 'NOT met'}**. "
+        f"{f['searchable_cells']} searchable cells. **Issue 28's goal (every target truly found, no setpoint off "
+        f"the field or in a no-fly zone, no fence breach, mean flight/grid <= {GOAL_FIELD_MEAN_RATIO}): "
+        f"{'met' if s['field_goal_met'] else 'NOT met'}**. "
         f"All truly found: {s['all_truly_found']}. Setpoints the vehicle heard: {c['setpoints']}, outside the "
         f"uploaded fence: {c['setpoints_outside_fence']}; places the {c['setpoints_meant']} setpoints sent the "
         f"vehicle truly, off the field or in a no-fly zone: {c['setpoints_off_field']}; position estimates "
         f"outside the fence (breaches): {c['breaches']}; the vehicle's fence rejections: {c['fence_rejections']}; "
-        f"simulator ticks the vehicle truly was off the field or over a no-fly zone: {c['true_off_field']}.",
+        f"setpoints heard outside the field's rings as drawn (in the estimate's frame, shifted by the bias; "
+        f"information): {c['setpoints_outside_rings']}. Beside the goal, where the vehicle truly went: "
+        f"{c['true_off_field']} simulator ticks (of 50 a second) off the field or over a no-fly zone, in "
+        f"{c['true_off_field_flights']} flight(s), at most {c['true_off_field_max_m']:.2f} m past the ring.",
         "",
     ]
 
