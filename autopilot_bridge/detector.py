@@ -33,14 +33,26 @@ class DetectorConfig:
     #: stricter for the cell below (it decides "found"); a neighbour's head must not count
     centre_fraction: float = 0.20
     colour_distance: float = 70.0
+    #: colours that are ground, not targets, beside the grass and the track: a real field's
+    #: no-fly zones as the camera sees them (NOFLY_RGB: its pond's water, its barn's roof), which
+    #: a survey of the field would calibrate as it calibrates the track's; () on a plain paddock
+    ground_rgb: tuple[tuple[float, float, float], ...] = ()
+
+
+#: a polygon field's no-fly zones as rendered (sim.vehicle.polygon_ground: WATER, ROOF); a pixel
+#: within edges.EDGE_DISTANCE of one is ground (a coat's nearest pixel is 40 away)
+NOFLY_RGB = ((28.0, 71.0, 167.0), (90.0, 100.0, 138.0))
 
 
 def _targets_mask(f: np.ndarray, cfg: DetectorConfig) -> np.ndarray:
     """(H, W, 3) float -> (H, W) bool: the pixels far from the field's grass in colour, the
     track round the field (`edges.edge_mask`) left out. The grass is the median of the pixels
     that are not track: the field dominates every frame but those over a corner of it, where the
-    track fills up to three quarters."""
+    track fills up to three quarters. The config's ground colours (a field's water and roofs)
+    are left out like the track, of the grass's median too."""
     track = edge_mask(f)
+    for rgb in cfg.ground_rgb:
+        track = track | edge_mask(f, rgb)
     ground = f[~track] if not track.all() else f.reshape(-1, 3)
     grass = np.median(ground.reshape(-1, 3), axis=0)
     return (np.linalg.norm(f - grass, axis=-1) > cfg.colour_distance) & ~track

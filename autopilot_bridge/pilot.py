@@ -124,6 +124,9 @@ class Pilot:
         """Send the new setpoint at once (the stream repeats it); returns it in local NED. The
         autopilot flies its GPS-fed estimate (truth + bias): the setpoint is shifted by the
         estimated bias so the vehicle is truly over the cell's centre."""
+        area = self.spec.area
+        if area is not None and not area.searchable(cell):  # never a leg off the field or into a no-fly zone
+            raise ValueError(f"cell {tuple(int(c) for c in cell)} is not a searchable cell of the field: no setpoint sent")
         local = self.intake.field_to_local(cell_to_ned(cell))
         if self.spec.register:
             local = local + self.estimator.bias_ned[:2]
@@ -135,10 +138,17 @@ class Pilot:
         position seen outside it stops here (FenceBreached) instead."""
         if self.fence_watch is not None:
             self.fence_watch.check()  # outside the fence: no leg that would undo its action
-        self.log.setpoints_local.append([round(float(v), 4) for v in local])
+        # sent in NED: on a field's turned grid, `local` (the grid's frame) is turned back
+        setpoint = self.intake.to_ned(np.array([local[0], local[1], self.search_d]))
+        self.log.setpoints_local.append([round(float(v), 4) for v in setpoint[:2]])
+        if self.spec.area is not None:
+            meant = np.asarray(local[:2], dtype=float) + self.intake.local_origin_in_field()[:2]
+            if self.spec.register:
+                meant = meant - self.estimator.bias_ned[:2]
+            self.log.setpoint_field_ne.append([round(float(v), 4) for v in self.spec.area.frame.rotate_to_ned(meant)])
         self.expect(DECISION_DEADLINE_S)
         with self._setpoint_lock:
-            self._setpoint = np.array([local[0], local[1], self.search_d])
+            self._setpoint = setpoint
             self.link.set_position_ned(*self._setpoint)
         if self.link.telemetry.mode != self.link.require_dialect().guided_mode:
             self._enter_offboard()  # the first leg, or the autopilot dropped out
@@ -246,7 +256,7 @@ class Pilot:
         # offboard-loss failsafe brings it home (the stream stops at the loop's deadline)
         here = self.intake.local_at(self.t_offboard) if timed else None
         if here is None:
-            here = np.array([link.telemetry.local["n"], link.telemetry.local["e"]])
+            here = self.intake.to_grid(np.array([link.telemetry.local["n"], link.telemetry.local["e"]]))
         self.start_stream(here)
         if timed:
             self._held_at(t_leg, timeout)  # the decision loop's first leg starts here
@@ -261,11 +271,11 @@ class Pilot:
                 f"{'armed' if tel.armed else 'disarmed'}; it said: {said}")
 
     def start_stream(self, here: np.ndarray) -> None:
-        """Hold the vehicle at `here` (local north, east) at the search height: the setpoint
+        """Hold the vehicle at `here` (local north, east; the grid's frame on a field's turned grid) at the search height: the setpoint
         sent at once, then streamed by its thread under the decision loop's deadline, and the
         dialect's guided mode taken (after take-off, and when a resumed search rejoins)."""
         with self._setpoint_lock:
-            self._setpoint = np.array([here[0], here[1], self.search_d])
+            self._setpoint = self.intake.to_ned(np.array([here[0], here[1], self.search_d]))
             self.link.set_position_ned(*self._setpoint)
         self.expect(DECISION_DEADLINE_S)
         threading.Thread(target=self._stream_setpoints, daemon=True, name="setpoints").start()

@@ -117,10 +117,17 @@ class Registration:
             return 0
         g, height = self.spec.grid, self.camera_height()
         used = 0
+        area = self.spec.area
         for e in edges:
             sd = _edge_sd(e.offset_m, height)
-            z = border_ne(e.axis, e.side, g.width, g.height) - e.offset_m
             post = self.estimator.posterior(t)
+            if area is None:
+                z = border_ne(e.axis, e.side, g.width, g.height) - e.offset_m
+            else:  # a polygon's edge: the one along this axis the frame shows, near where the posterior puts it
+                border = area.border_along(e.axis, e.side, post.mean_ned[:2], e.offset_m, half_footprint_m(height))
+                if border is None:
+                    continue
+                z = border - e.offset_m
             r = z - float(post.mean_ned[e.axis])
             if r * r > EDGE_DOUBT**2 * (float(post.horizontal_cov[e.axis, e.axis]) + sd**2):
                 self.estimator.doubt_split(abs(r), (e.axis,))
@@ -134,8 +141,8 @@ class Registration:
         that far in (`GpsEstimator.observe_bound`). A frame a cell off towards a border would
         have had it in view (flight seed 154: the camera believed a cell east, 3 m from the east
         border, which the frame did not show; a cow registered there for 5 decisions)."""
-        if not self.spec.register or not self.spec.field_edge:
-            return
+        if not self.spec.register or not self.spec.field_edge or self.spec.area is not None:
+            return  # (a polygon's borders not seen: not yet weighed)
         g, height = self.spec.grid, self.camera_height()
         reach = half_footprint_m(height, fov_deg) - EDGE_REACH_MARGIN_M
         sd = _edge_sd(reach, height)

@@ -18,6 +18,7 @@ from sim.gridworld.geodesy import HomePosition
 
 from .detector import CAMERA_BELOW_M
 from .fence import FencePlan
+from .field_area import FieldArea
 
 VISIT_MAPS = ("probabilistic", "hard")
 
@@ -61,6 +62,10 @@ class SearchSpec:
     #: the field's fence, uploaded, read back and enabled before take-off, which is refused
     #: when that fails or home lies outside (autopilot_bridge.fence); None: no fence is sent
     fence: FencePlan | None = None
+    #: a real field (`field_area.FieldArea.of_field`): the grid at its heading (the companion then
+    #: works in the grid's frame), only its searchable cells searched and flown to, its polygon's
+    #: edges the borders registered on; None: today's north-aligned rectangle, every cell
+    area: FieldArea | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.decision_period_s) and self.decision_period_s > 0):
@@ -69,6 +74,11 @@ class SearchSpec:
             raise ValueError(f"visit_map must be one of {VISIT_MAPS} (got {self.visit_map!r})")
         if not 0.0 < self.exact_above <= 1.0:
             raise ValueError(f"exact_above must be in (0, 1] (got {self.exact_above})")
+        if self.area is not None and self.area.mask.shape != (self.grid.height, self.grid.width):
+            raise ValueError(f"the field's mask is {self.area.mask.shape[1]} x {self.area.mask.shape[0]} cells, "
+                             f"the grid {self.grid.width} x {self.grid.height}")
+        if self.area is not None and self.grid.levels > 1:
+            raise ValueError(f"a real field is flown at one height for now (levels {self.grid.levels} with a field)")
 
     def camera_height(self) -> float:
         """The camera's height over the (flat) field: the autopilot holds the commanded height
@@ -102,6 +112,9 @@ class SearchLog:
     camera_ne: list[list[float]] = field(default_factory=list)
     #: every setpoint sent (local north, east; the autopilot's estimate frame)
     setpoints_local: list[list[float]] = field(default_factory=list)
+    #: on a real field (SearchSpec.area): where each setpoint sends the vehicle truly (field
+    #: NED about cell (0, 0): the setpoint less the registered bias), for the scorer's checks
+    setpoint_field_ne: list[list[float]] = field(default_factory=list)
     #: times the vehicle centred over a target in its cell before deciding (no move counted)
     recentred: int = 0
     #: times centring on a target put the camera over the next cell (the search went on there)

@@ -34,9 +34,10 @@ from policy.base import Observation, Policy
 from sim.gridworld import DELTAS, LEVEL_DELTAS, cell_to_ned, nearest_cell
 
 from .camera import FrameSource, MavlinkCamera
-from .detector import DetectorConfig, find_blobs
+from .detector import NOFLY_RGB, DetectorConfig, find_blobs
 from .edges import find_edges
 from .estimator import GpsEstimator
+from .field_area import field_map_valid, field_view_blocked
 from .found import FoundTargets
 from .height import FlownHeight
 from .link import LinkError, VehicleLink
@@ -75,7 +76,8 @@ class PolicyService:
         camera component on the vehicle's link."""
         self.link, self.policy, self.spec = link, policy, spec
         self.on_progress = on_progress
-        self.det = detector or DetectorConfig(altitude_m=spec.altitude_m)
+        self.det = detector or DetectorConfig(altitude_m=spec.altitude_m,
+                                              ground_rgb=NOFLY_RGB if spec.area is not None else ())
         self.seed = seed
         self.rng = np.random.default_rng([seed, 0x5E2])
         self.estimator = GpsEstimator()
@@ -87,7 +89,8 @@ class PolicyService:
         self.last_frame: tuple[int, np.ndarray, list] | None = None
         self.log = SearchLog()
         self.clock = clock
-        self.intake = TelemetryIntake(link, spec.origin, self.estimator, spec.arrive_m)
+        self.intake = TelemetryIntake(link, spec.origin, self.estimator, spec.arrive_m,
+                                      frame=spec.area.frame if spec.area is not None else None)
         self.found = FoundTargets(spec, self.estimator, self.intake)
         self.registration = Registration(link, spec, self.estimator, self.intake, self.found)
         self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log, self.frames)
@@ -244,6 +247,8 @@ class PolicyService:
                 far = [] if levels else [
                     far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
                     for b, i in zip(blobs, ids, strict=True) if b.beyond_view(height) and i is None]
+            if self.spec.area is not None:  # masked cells read like off-map ones, as in the grid world
+                view[1] = field_view_blocked(self.spec.area, cell)
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
                 self.last_frame = (move, frame, view[0].astype(int).tolist())
@@ -266,9 +271,14 @@ class PolicyService:
             if levels:
                 obs = self._level_observation(view, cell, lv, move, found_now)
             else:
+                maps = self.pmap.policy_map(g.map_variant)
+                valid = valid_moves(cell, g.width, g.height, g.n_actions)
+                if self.spec.area is not None:
+                    maps, valid = field_map_valid(self.spec.area, maps, g.map_variant, cell, g.n_actions)
                 obs = Observation(
-                    views=view[None], maps=self.pmap.policy_map(g.map_variant)[None],
-                    positions=cell[None].astype(np.int64), valid=valid_moves(cell, g.width, g.height, g.n_actions)[None],
+                    views=view[None], maps=maps[None],
+                    positions=cell[None].astype(np.int64), valid=valid[None],
+                    mask=None if self.spec.area is None else self.spec.area.mask[None],
                     t=np.array([move]), active=np.array([True]),
                     # the position posterior over cells: belief-state policies (policy/belief) fold the
                     # view in as an expectation over it, as in the grid world's GPS evaluation

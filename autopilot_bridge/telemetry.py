@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from sim.gridworld import GridFrame
 from sim.gridworld.geodesy import HomePosition
 
 from .estimator import GpsEstimator
@@ -68,8 +69,12 @@ class TelemetryIntake:
     """GPS fixes and the autopilot's local estimate off the link, read by their stamps."""
 
     def __init__(self, link: VehicleLink, origin: HomePosition, estimator: GpsEstimator,
-                 arrive_m: float) -> None:
+                 arrive_m: float, frame: GridFrame | None = None) -> None:
+        """frame: a grid at a heading (a real field's, `field_area`): every position and velocity
+        read off the link is turned into the grid's frame (ahead, right), which the service calls
+        field north, east; None or heading 0, NED as it comes."""
         self.link, self.origin, self.estimator, self.arrive_m = link, origin, estimator, arrive_m
+        self.frame = frame if frame is not None and frame.rotated else None
         self.last_gps_t = -1.0
         self._fixes: deque[Fix] = deque()  # received, not yet fused
         #: fixes left unfused because the filter had moved past their stamp (fuse_until)
@@ -90,10 +95,27 @@ class TelemetryIntake:
         link.add_handler(self._on_message)
 
     # -- frames: field NED (origin = cell (0,0)) vs the autopilot's local NED (origin = home) --
+    def to_grid(self, ned: np.ndarray) -> np.ndarray:
+        """A NED position or vector (2 or 3 components) in the grid's frame (the same array
+        without a turned grid)."""
+        if self.frame is None:
+            return ned
+        out = np.array(ned, dtype=np.float64)
+        out[:2] = self.frame.rotate_to_grid(out[:2])
+        return out
+
+    def to_ned(self, grid: np.ndarray) -> np.ndarray:
+        """A position or vector in the grid's frame back in NED (what goes out on the link)."""
+        if self.frame is None:
+            return grid
+        out = np.array(grid, dtype=np.float64)
+        out[:2] = self.frame.rotate_to_ned(out[:2])
+        return out
+
     def home_in_field(self) -> np.ndarray:
         """Home (HOME_POSITION), the launch point, in the field frame."""
         h = self.link.telemetry.home
-        return self.origin.geodetic_to_ned(h["lat"], h["lon"], h["alt"])
+        return self.to_grid(self.origin.geodetic_to_ned(h["lat"], h["lon"], h["alt"]))
 
     def local_origin_in_field(self) -> np.ndarray:
         """The origin of the autopilot's local frame (LOCAL_POSITION_NED, the setpoints) in the
@@ -106,8 +128,8 @@ class TelemetryIntake:
         o = self.link.telemetry.local_origin
         if not o:
             h = self.link.telemetry.home
-            return self.home_in_field() - np.array([h.get("x", 0.0), h.get("y", 0.0), h.get("z", 0.0)])
-        return self.origin.geodetic_to_ned(o["lat"], o["lon"], o["alt"])
+            return self.home_in_field() - self.to_grid(np.array([h.get("x", 0.0), h.get("y", 0.0), h.get("z", 0.0)]))
+        return self.to_grid(self.origin.geodetic_to_ned(o["lat"], o["lon"], o["alt"]))
 
     def home_down_local(self) -> float:
         """Home's height in the autopilot's local frame (down, m): the ground the search height
@@ -126,7 +148,7 @@ class TelemetryIntake:
         if kind == "GPS_RAW_INT" and msg.fix_type >= 3 and msg.time_usec * 1e-6 > self.last_gps_t:
             t = msg.time_usec * 1e-6
             self.last_gps_t = t
-            ned = self.origin.geodetic_to_ned(msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3)
+            ned = self.to_grid(self.origin.geodetic_to_ned(msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3))
             eph = msg.h_acc * 1e-3 if msg.h_acc else msg.eph * 1e-2
             epv = msg.v_acc * 1e-3 if msg.v_acc else msg.epv * 1e-2
             with self._fix_lock:
@@ -136,7 +158,11 @@ class TelemetryIntake:
             self.sim_time_s = max(self.sim_time_s, t)
         elif kind == "LOCAL_POSITION_NED":
             t = msg.time_boot_ms * 1e-3
-            self.local_history.append((t, msg.x, msg.y, msg.vx, msg.vy))
+            if self.frame is None:
+                self.local_history.append((t, msg.x, msg.y, msg.vx, msg.vy))
+            else:
+                (n, e), (vn, ve) = self.frame.rotate_to_grid(np.array([[msg.x, msg.y], [msg.vx, msg.vy]]))
+                self.local_history.append((t, float(n), float(e), float(vn), float(ve)))
             self.down_history.append((t, msg.z, msg.vz))
             self.sim_time_s = max(self.sim_time_s, t)
 

@@ -52,6 +52,9 @@ class FieldSpec:
     #: the vehicle's launch pad in the field frame (north, east m), where a real autopilot's
     #: world sets it down: its HOME_POSITION is its GPS's fix there, not the pad
     launch_ne: tuple[float, float] | None = None
+    #: the real field the SITL renders (`sitl --field`): the path of its field.json (`uavsearch
+    #: field`), whose grid, heading, mask and fence `run --field` flies; None: the rectangle
+    polygon: str | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -71,7 +74,8 @@ class FieldSpec:
                 # altitude levels the companion flies (docs/altitude.md), with their detection
                 # table: only where there are levels, so files without them read as before
                 **({} if self.grid.levels == 1 else {"levels": self.grid.levels,
-                                                     "detection": self.grid.detection.to_dict()})}
+                                                     "detection": self.grid.detection.to_dict()}),
+                **({} if self.polygon is None else {"polygon": self.polygon})}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -128,6 +132,12 @@ def read_field(path: Path) -> FieldSpec:
         uri, sdp = video["uri"], video.get("sdp")
         if sdp is not None and not Path(sdp).is_absolute():
             sdp = str(Path(path).parent / sdp)
+    polygon = d.get("polygon")
+    if polygon is not None:
+        if not isinstance(polygon, str):
+            raise FieldFileError(f"field file {path}: polygon must be the path of a field.json (got {polygon!r})")
+        if not Path(polygon).is_absolute():
+            polygon = str(Path(path).parent / polygon)
     return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
                      video_uri=uri, video_sdp=sdp, autopilot=autopilot, camera=camera,
-                     launch_ne=launch)
+                     launch_ne=launch, polygon=polygon)

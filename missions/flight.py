@@ -16,7 +16,8 @@ from provenance import atomic_open, atomic_write_json, stamp
 from sim.gridworld import GridConfig
 
 
-def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: np.ndarray, title: str) -> None:
+def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: np.ndarray, title: str,
+          mask: np.ndarray | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -29,6 +30,9 @@ def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: 
     ax.set_yticks(range(grid.height))
     ax.grid(True, color="0.85")
     ax.set_facecolor((0.86, 0.93, 0.82))
+    if mask is not None:  # a real field's cells not searched (off it, or in a no-fly zone): grey
+        ax.imshow(np.where(np.asarray(mask)[..., None], [0.86, 0.93, 0.82, 0.0], [0.55, 0.55, 0.55, 0.8]),
+                  extent=(-0.5, grid.width - 0.5, grid.height - 0.5, -0.5), interpolation="nearest", zorder=0)
     c = np.array(cells)
     if len(track):
         ax.plot(track[:, 0], track[:, 1], "-", color="tab:blue", alpha=0.45, lw=1, label="true track (physics)")
@@ -151,7 +155,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                policy: str | None = None, on_abort: str = "rtl", progress: bool = False,
                physics: str = "pybullet", gps_sigma_m: float | None = None, visit_map: str = "probabilistic",
                free_ports: bool = False, plot: bool = True, lockstep: bool = True,
-               camera: str = "mavlink", autopilot: str = "ours") -> dict[str, Any]:
+               camera: str = "mavlink", autopilot: str = "ours", field: Any = None) -> dict[str, Any]:
     """Start SITL in-process, fly a policy (default: the best shipped one) over MAVLink, write
     report + plot + tlog. Any failure or Ctrl-C brings the vehicle down first (missions.guarded);
     report['outcome'] says how the flight ended, report['error'] what stopped it, if anything.
@@ -162,7 +166,14 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     the truth (NEES). free_ports: ports the OS hands out (parallel flights beside other tests).
     camera: "mavlink" (the vehicle's MAVLink camera) or "video" (its RTP/H.264 stream on a free
     port, decoded by autopilot_bridge.camera.video; with lockstep, captures are asked for over
-    MAVLink, which holds the SITL at each, as with the MAVLink camera)."""
+    MAVLink, which holds the SITL at each, as with the MAVLink camera).
+
+    field: a real field (`sim.field.PolygonField`, our SITL only): the SITL renders it and places
+    home and targets on its searchable cells, the companion searches its mask in its grid's
+    frame with its fence uploaded (margin `fence.FIELD_MARGIN_M`), and the report counts every
+    setpoint the vehicle heard outside that fence (its tlog), every place a setpoint meant that
+    is off the field or in a no-fly zone, and every tick the vehicle truly was (`field_checks`);
+    the grid is the field's (`grid`'s size is replaced)."""
     if camera not in ("mavlink", "video"):
         raise ValueError(f"camera must be 'mavlink' or 'video' (got {camera!r})")
     from autopilot_bridge.link import VehicleLink
@@ -174,6 +185,12 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     from sim.mavlink import SitlConfig
 
     grid = grid or GridConfig()
+    if field is not None:
+        from missions.field_run import on_polygon_grid
+
+        if autopilot != "ours":
+            raise ValueError("a polygon field is flown on our SITL vehicle only (autopilot 'ours')")
+        grid = on_polygon_grid(field, grid)
     pol = flight_policy(policy, checkpoint, grid, seed)  # before anything starts: can it fly this field?
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -187,7 +204,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     video = VideoConfig(port=_free_udp_ports(1)[0]) if camera == "video" else VideoConfig()
     cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=field_grid(grid),
                      episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True, gps=gps,
-                     companion_lockstep=lockstep, video=video, **ports)
+                     companion_lockstep=lockstep, video=video, **ports,
+                     **({} if field is None else {"home": field.origin, "polygon": field}))
     held = ExitStack()
     frames = None
     if autopilot != "ours":  # a real autopilot binary flies our world (sim.bridges)
@@ -213,8 +231,14 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
 
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
+    area = fence = None
+    if field is not None:
+        from missions.field_run import field_spec
+
+        area, fence = field_spec(field).values()
     spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=max_moves, visit_map=visit_map,
-                      field_edge=cfg.field_edge, set_failsafe=autopilot != "ours",
+                      field_edge=cfg.field_edge and field is None, set_failsafe=autopilot != "ours",
+                      area=area, fence=fence,
                       # a real autopilot's home is its GPS fix at arming: the pad it stands on is given
                       launch_ne=None if autopilot == "ours" else tuple(float(v) for v in sitl.world.scene.spawn_ne))
     t0 = time.monotonic()
@@ -258,6 +282,18 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     else:
         log_grid_error = None
     truth = np.array(sitl.truth) if sitl.truth else np.zeros((0, 3))
+    checks = None
+    if field is not None:
+        from missions.field_checks import field_checks
+
+        checks = field_checks(field, fence, out / "flight.tlog", sitl.spawn_ne, truth, sitl.vehicle.counters,
+                              log.setpoint_field_ne)
+        from autopilot_bridge.fence import FIELD_MARGIN_M
+
+        checks["fence_margin_m"] = FIELD_MARGIN_M
+        # the companion's posterior is in the grid's frame (ahead, right): the truth too, for NEES and offsets
+        truth = truth.copy()
+        truth[:, 1:3] = area.frame.ned_to_grid(truth[:, 1:3])
     cons = consistency(log.times_s, log.posterior_mean_ne, log.posterior_cov_ne, truth)
     save_log(log, out / "search_log.json", outcome=end.to_dict(), true_ne=cons.get("true_ne", []))
     report = stamp(grid.to_dict(), seed, sitl={"instance": instance, "speedup": speedup, "physics": physics,
@@ -285,6 +321,9 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    search_s=float(log.times_s[-1] - log.times_s[0]) if log.times_s else None,
                    levels_flown=log.levels_flown, camera_height_m=log.camera_height_m,
                    tlog=str(out / ("flight.tlog" if autopilot == "ours" else "companion.tlog")),
+                   **({} if checks is None else {"field": {"source": field.source, "heading_deg": field.heading_deg,
+                                                           "searchable_cells": int(area.mask.sum())},
+                                                 "field_checks": checks}),
                    plot=str(out / "search.png"))
     atomic_write_json(out / "report.json", report)
     if plot and log.cells:
@@ -294,7 +333,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
 
         path = np.stack([truth[::5, 2] / 2.0, -truth[::5, 1] / 2.0], axis=1) if len(truth) else tr
         _plot(out / "search.png", grid, targets, log.cells, path,
-              f"{moves} moves (grid world {in_grid}, optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)")
+              f"{moves} moves (grid world {in_grid}, optimal {optimal}); found {sum(truly)}/{grid.n_targets} (truth)",
+              mask=None if area is None else area.mask)
         frames = list(service.kept_frames)
         if service.last_frame is not None and (not frames or frames[-1][0] != service.last_frame[0]):
             frames.append(service.last_frame)

@@ -39,7 +39,7 @@ def compare_levels(seeds: list[int], out: Path, field: tuple[int, int, int], lev
     if levels == baseline:
         raise ValueError(f"levels and the baseline's must differ (both {levels})")
     t0 = time.monotonic()
-    docs = {lv: flight_vs_grid(seeds, out, workers, speedup, policy, max_moves, field=field, levels=lv,
+    docs = {lv: flight_vs_grid(seeds, out, workers, speedup, policy, max_moves, size=field, levels=lv,
                                detection=detection if lv > 1 else None, command=command)
             for lv in (levels, baseline)}
     a, b = docs[levels], docs[baseline]

@@ -38,20 +38,23 @@ class FlightJob:
     #: who flies: our SITL vehicle, or a real ardupilot / px4 binary on our world (sim.bridges)
     autopilot: str = "ours"
     camera: str = "mavlink"  # mavlink | video (the SITL's RTP/H.264 stream, decoded by PyAV)
-    #: the field (width, height, |R|; None: the flight's default 10 x 10 / 5) and the altitude
-    #: levels the companion flies (docs/altitude.md) with a detection table (a JSON path; None:
-    #: the measured one shipped with sim.gridworld)
-    field: tuple[int, int, int] | None = None
+    #: the field's size (width, height, |R|; None: the flight's default 10 x 10 / 5) and the
+    #: altitude levels the companion flies (docs/altitude.md) with a detection table (a JSON
+    #: path; None: the measured one shipped with sim.gridworld)
+    size: tuple[int, int, int] | None = None
     levels: int = 1
     detection: str | None = None
+    #: a real field's field.json (`uavsearch field`): flown inside its polygon (our vehicle);
+    #: None, the rectangle
+    field: str | None = None
 
     def grid(self):
         """The GridConfig flown, or None for the flight's default field (today's flights)."""
-        if self.field is None and self.levels == 1 and self.detection is None:
+        if self.size is None and self.levels == 1 and self.detection is None:
             return None
         from sim.gridworld import DetectionTable, GridConfig
 
-        w, h, r = self.field if self.field is not None else (10, 10, 5)
+        w, h, r = self.size if self.size is not None else (10, 10, 5)
         table = DetectionTable.load(self.detection) if self.detection is not None else None
         return GridConfig(width=w, height=h, n_targets=r, levels=self.levels, detection=table)
 
@@ -68,11 +71,17 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
     """One flight in this worker's SITL instance; the row of the table."""
     from missions.flight import fly_search
 
+    pf = None
+    if job.field is not None:
+        from missions.field_run import load_polygon
+
+        pf = load_polygon(Path(job.field))
     with tempfile.TemporaryDirectory(prefix="flight-") as tmp:
         out = Path(job.out) / f"seed{job.seed}" if job.out else Path(tmp)
         r = fly_search(out, seed=job.seed, speedup=job.speedup, max_moves=job.max_moves, policy=job.policy,
                        gps_sigma_m=job.gps_sigma_m, visit_map=job.visit_map, plot=job.out is not None,
-                       free_ports=True, autopilot=job.autopilot, camera=job.camera, grid=job.grid())
+                       free_ports=True, autopilot=job.autopilot, camera=job.camera, grid=job.grid(),
+                       **({} if pf is None else {"field": pf}))
     keep = ("policy", "moves", "grid_moves", "flight_grid_ratio", "optimal_moves", "believed_found", "truly_found",
             "targets", "schedule_slips", "late_frames", "late_inputs", "lockstep_timeouts", "frames_missing", "nees_mean",
             "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells", "search_s", "levels_flown")
@@ -80,7 +89,8 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
     cap = job.max_moves if job.max_moves is not None else int(r["config"]["t_e"])
     capped = r["moves"] >= cap and r["believed_found"] < r["targets"]
     return {"seed": job.seed, "gps_sigma_m": job.gps_sigma_m, "visit_map": job.visit_map, "capped": capped,
-            "levels": job.levels, **{k: r.get(k) for k in keep}}
+            "levels": job.levels, **{k: r.get(k) for k in keep},
+            **({} if pf is None else {"field_checks": r["field_checks"]})}
 
 
 def fly_many(jobs: list[FlightJob], workers: int = 2) -> list[dict[str, Any]]:
@@ -132,7 +142,32 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
                                                                                   for r in ok) else None,
         "goal_met": bool(len(ratios) and not any(r.get("capped") for r in ok) and len(ok) == len(rows)
                          and ratios.mean() <= GOAL_MEAN_RATIO and ratios.max() <= GOAL_MAX_RATIO),
+        **_field_summary(rows, ok, ratios),
     }
+
+
+#: issue 28's goal on a real field: every target truly found, no setpoint off the field or in a
+#: no-fly zone, no fence breach, and the mean flight/grid ratio at most this
+GOAL_FIELD_MEAN_RATIO = 1.1
+#: the field checks (missions.field_checks) summed over flights that the goal wants 0
+FIELD_ZERO = ("setpoints_outside_fence", "setpoints_off_field", "breaches", "fence_rejections")
+
+
+def _field_summary(rows: list[dict[str, Any]], ok: list[dict[str, Any]], ratios: np.ndarray) -> dict[str, Any]:
+    """Flights over a real field: the checks summed (over every flight, errors included) and
+    issue 28's goal; nothing for flights over the rectangle."""
+    checked = [r["field_checks"] for r in rows if "field_checks" in r]
+    if not checked:
+        return {}
+    totals = {k: int(sum(c.get(k, 0) for c in checked))
+              for k in ("setpoints", "setpoints_meant", "setpoints_outside_rings", *FIELD_ZERO, "true_off_field")}
+    # beside the goal: where the vehicle truly went (its position error, not a setpoint)
+    totals["true_off_field_flights"] = int(sum(c["true_off_field"] > 0 for c in checked))
+    totals["true_off_field_max_m"] = float(max(c.get("true_off_field_max_m", 0.0) for c in checked))
+    all_found = bool(ok) and all(r["truly_found"] == r["targets"] for r in ok)
+    met = bool(len(ok) == len(rows) and all_found and not any(totals[k] for k in FIELD_ZERO)
+               and len(ratios) and ratios.mean() <= GOAL_FIELD_MEAN_RATIO)
+    return {"field_checks": totals, "all_truly_found": all_found, "field_goal_met": met}
 
 
 #: resamples of the bootstrap interval of the mean ratio (seeded: the same rows, the same interval)
@@ -164,19 +199,32 @@ def over_interval(k: int, n: int) -> list[float] | None:
 
 def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float = 10.0,
                    policy: str | None = None, max_moves: int | None = None, autopilot: str = "ours",
-                   camera: str = "mavlink", field: tuple[int, int, int] | None = None, levels: int = 1,
-                   detection: str | None = None, command: str = "python -m missions flight-table") -> dict[str, Any]:
+                   camera: str = "mavlink", size: tuple[int, int, int] | None = None, levels: int = 1,
+                   detection: str | None = None, command: str = "python -m missions flight-table",
+                   field: Path | None = None) -> dict[str, Any]:
     """Fly every seed, compare with the grid world, write out/flight_vs_grid.{md,json}
     (flight_vs_grid_<autopilot>.* when a real autopilot flies; _WxH_R and _levelsL for another
-    field and altitude levels)."""
+    field size and altitude levels; flight_vs_grid_field_<name>.* over a real field, `field`
+    its field.json, named by its folder)."""
     from missions.flight_policy import FLIGHT_POLICY
 
+    if field is not None and (size is not None or levels != 1):
+        raise ValueError("a real field sets its own grid and flies one height (no size, no levels)")
     t0 = time.monotonic()
+    fpath = None if field is None else str(Path(field))
     rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera,
-                               field=field, levels=levels, detection=detection) for s in seeds], workers)
+                               size=size, levels=levels, detection=detection, field=fpath) for s in seeds], workers)
     summary = summarise(rows)
-    extra = {} if field is None and levels == 1 and detection is None else {
-        "field": list(field) if field is not None else None, "levels": levels, "detection": detection}
+    extra: dict[str, Any] = {} if size is None and levels == 1 and detection is None else {
+        "field": list(size) if size is not None else None, "levels": levels, "detection": detection}
+    if field is not None:
+        from missions.field_run import load_polygon
+
+        pf = load_polygon(Path(field))
+        extra = {"field": {"file": fpath, "source": pf.source, "heading_deg": pf.heading_deg, "width": pf.width,
+                           "height": pf.height, "searchable_cells": pf.searchable_cells}}
+        if "--field" not in command:
+            command += f" --field {fpath}"
     doc = stamp({"seeds": seeds, "speedup": speedup, "workers": workers, "policy": policy or FLIGHT_POLICY,
                  "max_moves": max_moves, "visit_map": "probabilistic", "companion_lockstep": autopilot == "ours",
                  "autopilot": autopilot, "camera": camera, **extra},
@@ -184,8 +232,10 @@ def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float
                  cpus=os.cpu_count(), command=command)
     stem = "flight_vs_grid" + ("" if autopilot == "ours" else f"_{autopilot}") + ("" if camera == "mavlink" else
                                                                                    f"_{camera}")
-    stem += "" if field is None else f"_{field[0]}x{field[1]}_{field[2]}"
+    stem += "" if size is None else f"_{size[0]}x{size[1]}_{size[2]}"
     stem += "" if levels == 1 else f"_levels{levels}"
+    if field is not None:
+        stem += f"_field_{Path(field).resolve().parent.name}"
     write_result(out, stem, doc, render_md(doc))
     return doc
 
@@ -214,9 +264,33 @@ def render_md(doc: dict[str, Any]) -> str:
         "",
         *_summary_lines(s),
         "",
+        *_field_lines(doc),
         *_row_lines(rows),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _field_lines(doc: dict[str, Any]) -> list[str]:
+    """Over a real field: which, and its checks against issue 28's goal (nothing otherwise)."""
+    s, f = doc["summary"], doc["config"].get("field")
+    if f is None or "field_checks" not in s:
+        return []
+    c = s["field_checks"]
+    return [
+        f"Real field `{f['file']}` ({f['source']}): {f['width']} x {f['height']} grid at {f['heading_deg']:.2f} deg, "
+        f"{f['searchable_cells']} searchable cells. **Issue 28's goal (every target truly found, no setpoint off "
+        f"the field or in a no-fly zone, no fence breach, mean flight/grid <= {GOAL_FIELD_MEAN_RATIO}): "
+        f"{'met' if s['field_goal_met'] else 'NOT met'}**. "
+        f"All truly found: {s['all_truly_found']}. Setpoints the vehicle heard: {c['setpoints']}, outside the "
+        f"uploaded fence: {c['setpoints_outside_fence']}; places the {c['setpoints_meant']} setpoints sent the "
+        f"vehicle truly, off the field or in a no-fly zone: {c['setpoints_off_field']}; position estimates "
+        f"outside the fence (breaches): {c['breaches']}; the vehicle's fence rejections: {c['fence_rejections']}; "
+        f"setpoints heard outside the field's rings as drawn (in the estimate's frame, shifted by the bias; "
+        f"information): {c['setpoints_outside_rings']}. Beside the goal, where the vehicle truly went: "
+        f"{c['true_off_field']} simulator ticks (of 50 a second) off the field or over a no-fly zone, in "
+        f"{c['true_off_field_flights']} flight(s), at most {c['true_off_field_max_m']:.2f} m past the ring.",
+        "",
+    ]
 
 
 def _summary_lines(s: dict[str, Any]) -> list[str]:

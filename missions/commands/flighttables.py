@@ -43,22 +43,41 @@ def register(app: typer.Typer) -> None:
             None, "--baseline-levels", min=1, max=3,
             help="Also fly the same seeds with this many levels (e.g. 1) and write OUT/flight_levels.md side by "
                  "side (docs/altitude.md)."),
+        field: Path | None = typer.Option(
+            None, "--field", help="A real field's field.json (`uavsearch field`): every flight searches inside its "
+                                  "polygon (our vehicle), checked for setpoints, breaches and true positions off it."),
     ) -> None:
         """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
         import sys
 
         from missions.flight_table import flight_vs_grid
 
+        if field is not None:
+            from missions.field_run import load_polygon
+
+            if autopilot != "ours":
+                raise typer.BadParameter("a real field is flown by our vehicle (--autopilot ours)", param_hint="--field")
+            try:
+                load_polygon(field)
+            except ValueError as e:
+                raise typer.BadParameter(str(e), param_hint="--field") from e
+
         if autopilot not in ("ours", "ardupilot", "px4"):
             raise typer.BadParameter(f"{autopilot!r}: expected ours, ardupilot or px4", param_hint="--autopilot")
         if camera not in ("mavlink", "video") or (camera == "video" and autopilot != "ours"):
             raise typer.BadParameter(f"{camera!r}: mavlink, or video with --autopilot ours", param_hint="--camera")
-        field = None
+        size = None
         if (width, height, targets) != (None, None, None):
-            field = (width or 10, height or 10, targets or 5)
+            if field is not None:
+                raise typer.BadParameter("a real field sets its own grid: no --width/--height/--targets with it",
+                                         param_hint="--field")
+            size = (width or 10, height or 10, targets or 5)
         if levels > 1 or detection is not None or baseline_levels is not None:
             if autopilot != "ours" or camera != "mavlink":
                 raise typer.BadParameter("altitude levels fly our SITL with its MAVLink camera", param_hint="--levels")
+            if field is not None:
+                raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
+                                         param_hint="--levels")
             with_levels(GridConfig(), levels, detection)  # a bad table is a usage error naming it
         command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["flight-table"] else \
             "python -m missions flight-table"
@@ -67,7 +86,7 @@ def register(app: typer.Typer) -> None:
             from missions.flight_levels import compare_levels
 
             try:
-                cmp = compare_levels(_seeds(first_seed, seeds), out, field or (10, 10, 5), levels, baseline_levels,
+                cmp = compare_levels(_seeds(first_seed, seeds), out, size or (10, 10, 5), levels, baseline_levels,
                                      workers, speedup, det, policy, max_moves, command)
             except ValueError as e:
                 raise typer.BadParameter(str(e), param_hint="--baseline-levels") from e
@@ -77,8 +96,8 @@ def register(app: typer.Typer) -> None:
                        f"search {b['search_s_mean']} s; {out / 'flight_levels.md'}")
             return
         doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot, camera,
-                             field=field, levels=levels, detection=det,
-                             **({} if field is None and levels == 1 else {"command": command}))
+                             size=size, levels=levels, detection=det, field=field,
+                             **({} if size is None and levels == 1 and field is None else {"command": command}))
         s = doc["summary"]
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")

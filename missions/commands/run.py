@@ -35,7 +35,9 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def run(
         field: Path | None = typer.Option(
-            None, "--field", help="The field file `uavsearch sitl` wrote (origin, size, |R|, motion, address)."),
+            None, "--field", help="The field file `uavsearch sitl` wrote (origin, size, |R|, motion, address), or a "
+                                  "real field's field.json (`uavsearch field`): its grid at its heading, its "
+                                  "searchable cells only, its fence uploaded."),
         connect: str | None = typer.Option(
             None, "--connect", help="pymavlink address of the vehicle (default: the field file's, else udpin:0.0.0.0:14540)."),
         origin_lat: float | None = typer.Option(None, "--origin-lat", help="Latitude of cell (0, 0)'s centre."),
@@ -94,6 +96,7 @@ def register(app: typer.Typer) -> None:
         from autopilot_bridge.link import VehicleLink
         from autopilot_bridge.resume import rejoin
         from autopilot_bridge.service import PolicyService, SearchSpec, save_log
+        from missions.field_run import field_spec
         from missions.fieldfile import FieldFileError, FieldSpec, read_field
         from missions.flight_policy import PolicyUnfit, flight_policy
         from missions.guarded import EXIT_OK, EXIT_SHORT, guarded_search
@@ -156,10 +159,17 @@ def register(app: typer.Typer) -> None:
         seed = 0 if seed is None else seed
 
         fs: FieldSpec | None = None
+        pf = None  # a real field (sim.field.PolygonField): given itself, or named by the SITL's field file
         if field is not None:
+            from missions.field_run import is_polygon_file, load_polygon
+
             try:
-                fs = read_field(field)
-            except FieldFileError as e:
+                if is_polygon_file(field):
+                    pf = load_polygon(field)
+                else:
+                    fs = read_field(field)
+                    pf = None if fs.polygon is None else load_polygon(Path(fs.polygon))
+            except (FieldFileError, ValueError) as e:
                 raise typer.BadParameter(str(e), param_hint="--field") from e
         if fs is not None and doc is not None:
             jg, jo = doc.config["grid"], doc.config["origin"]
@@ -169,11 +179,18 @@ def register(app: typer.Typer) -> None:
                    f"this field ({here[0]} x {here[1]}, {here[2]} targets, origin {here[3]}, {here[4]}) is not the "
                    f"journaled search's ({doc.path}: {there[0]} x {there[1]}, {there[2]} targets, origin "
                    f"{there[3]}, {there[4]})")
-        if fs is None and (origin_lat is None or origin_lon is None):
+        if fs is None and pf is None and (origin_lat is None or origin_lon is None):
             raise typer.BadParameter("give --field FILE (written by `uavsearch sitl`) or both --origin-lat and "
                                      "--origin-lon (the centre of cell (0, 0))", param_hint="--field")
         g0 = fs.grid if fs is not None else GridConfig()
         o0 = fs.origin if fs is not None else HomePosition(0.0, 0.0, 30.0)
+        if pf is not None:  # the real field's grid and origin: not to be changed by hand
+            from missions.field_run import on_polygon_grid
+
+            g0, o0 = on_polygon_grid(pf, g0), pf.origin
+            for given, hint in ((width, "--width"), (height, "--height"), (origin_lat, "--origin-lat"),
+                                (origin_lon, "--origin-lon"), (cell_m, "--cell-m")):
+                _check(given is None, given, hint, f"the real field {pf.source!r} sets it")
 
         def pick(given, from_field):  # an explicit option wins over the field file
             return from_field if given is None else given
@@ -252,6 +269,8 @@ def register(app: typer.Typer) -> None:
                   "autopilot": autopilot.lower(), "set_failsafe": set_failsafe}
         if doc is not None and field is None:
             config["field"] = doc.config.get("field")
+        if pf is not None:
+            config["polygon"] = {"source": pf.source, "heading_deg": pf.heading_deg}
         from missions.keys import KeyFileError, read_signing_key
 
         try:
@@ -295,7 +314,8 @@ def register(app: typer.Typer) -> None:
         try:
             with FlightProgress(f"search ({pol.name})") as progress:
                 spec = SearchSpec(origin, grid, altitude, max_moves=max_moves, field_edge=edge,
-                                  set_failsafe=set_failsafe, launch_ne=fs.launch_ne if fs is not None else None)
+                                  set_failsafe=set_failsafe, launch_ne=fs.launch_ne if fs is not None else None,
+                                  **({} if pf is None else field_spec(pf)))
                 service = PolicyService(link, pol, spec, seed,
                                         on_progress=progress, frames=frames)
                 if hasattr(frames, "clock"):  # a stream's unstamped frames: on the vehicle's clock

@@ -95,6 +95,11 @@ def register(app: typer.Typer) -> None:
                  "our world (the PyBullet body driven by its motor commands, the same field and targets)."),
         autopilot_bin: Path | None = typer.Option(
             None, "--autopilot-bin", help="The autopilot binary (arducopter / px4); default $ARDUPILOT_SITL / $PX4_SITL."),
+        polygon_field: Path | None = typer.Option(
+            None, "--field",
+            help="A real field (field.json from `uavsearch field`): the world renders its polygon (grass inside, "
+                 "the track along its edge, water or roofs in its no-fly zones), home and targets on its searchable "
+                 "cells; its origin and grid replace --lat/--lon/--alt/--width/--height. Our vehicle only."),
         camera_px: int = typer.Option(
             50, "--camera-px",
             help="The downward camera's resolution, pixels a side (16..1024; 100 deg FoV at any size). The "
@@ -135,6 +140,11 @@ def register(app: typer.Typer) -> None:
         if cell_m != 2.0:
             raise typer.BadParameter(f"only 2 m cells are simulated so far (got {cell_m}): the camera, the field "
                                      "and the detector are built for 2 m", param_hint="--cell-m")
+        pf = None
+        if polygon_field is not None:
+            pf = _polygon(polygon_field, autopilot != Autopilot.ours, count)
+            width, height = pf.width, pf.height
+            lat, lon, alt = pf.origin.lat_deg, pf.origin.lon_deg, pf.origin.alt_m
         try:
             grid = GridConfig(width=width, height=height, n_targets=targets, distribution=distribution.value,
                               motion=motion.value)
@@ -143,6 +153,9 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(str(e)) from e
         # altitude levels: the field file tells `run --field` to fly them; the vehicle's world is
         # the same (the camera renders at any height), its frame checked to cover the top window
+        if pf is not None and levels > 1:
+            raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
+                                     param_hint="--levels")
         search_grid = _with_levels(grid, levels, detection)
         # the fence must hold the whole field seen from any spawn cell: its diagonal, and a margin
         diagonal = float(np.hypot(width, height)) * cell_m
@@ -188,7 +201,8 @@ def register(app: typer.Typer) -> None:
                              episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind,
-                             dialect=dialect.value, ekf_delay_s=ekf_delay_s, video=video)
+                             dialect=dialect.value, ekf_delay_s=ekf_delay_s, video=video,
+                             **({} if pf is None else {"polygon": pf}))
             cfgs.append(cfg)
             api, gcs = cfg.api_ports[1], cfg.gcs_ports[1]
             typer.echo(f"vehicle {n} (MAVLink system {cfg.sysid}, {dialect.value}):")
@@ -208,7 +222,8 @@ def register(app: typer.Typer) -> None:
                            f"simulated), SDP {sdp_path}; QGroundControl: Video Source 'UDP h.264 Video Stream', "
                            f"port {video.port}")
             write_field(fpath, FieldSpec(origin, search_grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
-                                         dialect=dialect.value, autopilot="ours", video_uri=uri, video_sdp=sdp_name),
+                                         dialect=dialect.value, autopilot="ours", video_uri=uri, video_sdp=sdp_name,
+                                         polygon=None if pf is None else str(polygon_field.resolve())),
                         seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
@@ -216,6 +231,9 @@ def register(app: typer.Typer) -> None:
                 typer.echo(f"    levels              {levels} (heights {_heights(levels)} m over home; the camera's "
                            f"frame reaches {_margin(levels):.1f} m beyond level {levels}'s {2 * levels + 1} x "
                            f"{2 * levels + 1} cells)")
+            if pf is not None:
+                typer.echo(f"    real field          {polygon_field}: heading {pf.heading_deg:.2f} deg, "
+                           f"{pf.searchable_cells} searchable cells (targets and home on them)")
             typer.echo(f"    companion           uavsearch run --field {fpath}" + (" [--camera video]" if uri else ""))
         if key is not None:
             typer.echo("MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: `signing key` with "
@@ -261,6 +279,26 @@ def _margin(levels: int) -> float:
     from autopilot_bridge.height import footprint_margin_m
 
     return footprint_margin_m(levels)
+
+
+def _polygon(path: Path, real_autopilot: bool, count: int):
+    """The real field `sitl --field` renders, loaded and checked; a bad file is one usage error."""
+    from sim.field import FieldError, load_field
+    from sim.gridworld.masks import largest_component
+
+    if real_autopilot or count != 1:
+        raise typer.BadParameter("a real field is flown by our SITL vehicle, one at a time (--autopilot ours, "
+                                 "--count 1)", param_hint="--field")
+    try:
+        pf = load_field(str(path))
+    except FieldError as e:
+        raise typer.BadParameter(str(e), param_hint="--field") from e
+    if pf.cell_m != 2.0:
+        raise typer.BadParameter(f"{path}: its cells are {pf.cell_m:g} m; the simulated camera is built for 2 m "
+                                 "(uavsearch field --cell-m 2)", param_hint="--field")
+    if int(largest_component(np.asarray(pf.mask, bool)).sum()) < 2:
+        raise typer.BadParameter(f"{path}: fewer than 2 searchable cells", param_hint="--field")
+    return pf
 
 
 def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: int, speedup: float,

@@ -56,6 +56,10 @@ class NoFly:
             raise ValueError(f"no-fly kind must be 'hole' or 'exclusion' (got {self.kind!r})")
 
 
+#: what is left of a narrow no-fly zone in its fence (m across; `PolygonField.fence_rings`)
+CORE_M = 0.5
+
+
 @dataclass(frozen=True, eq=False)
 class PolygonField:
     """A real field, gridded. Cell (x, y) is `classes[y, x]`; `mask` is what the grid world
@@ -134,6 +138,37 @@ class PolygonField:
         for r in no_fly:
             ok &= ~shapely.contains_xy(shapely.Polygon(r[:, ::-1]), p[..., 1], p[..., 0])
         return ok
+
+    def fence_rings(self, margin_m: float) -> tuple[list[LatLon], list[list[LatLon]]]:
+        """The fence's rings (lat, lon), margin_m of room for the autopilot's position estimate:
+        the outer ring grown by it, each no-fly ring shrunk by it, down to a core CORE_M across
+        where it is narrower (a 4 m pond keeps a 0.5 m core: an estimate there has the vehicle
+        truly over the pond, or its bias 2.7 m, 4 sigma). An autopilot tests its estimate (truth + the receiver's bias, 0.7 m sd an
+        axis in our SITL) against its fence, while the companion flies the true cell centres,
+        half a cell or more inside the field and outside its no-fly zones: fenced on the rings
+        themselves, a vehicle truly over a border cell would breach on its bias. Mitred
+        corners keep a vertex count autopilots take."""
+        import shapely
+
+        if not (math.isfinite(margin_m) and margin_m >= 0):
+            raise ValueError(f"fence margin must be >= 0 m (got {margin_m!r})")
+        outer, no_fly = self.rings_ne()
+        p = self.projection
+
+        def grown(ring: np.ndarray, by: float) -> np.ndarray:
+            poly = shapely.Polygon(ring[:, ::-1])
+            if by < 0:  # no deeper than leaves the core (the largest inscribed circle's radius less it)
+                r = float(shapely.maximum_inscribed_circle(poly, 0.01).length)
+                by = -min(-by, max(r - CORE_M / 2, 0.0))
+            if by == 0:
+                return ring
+            g = poly.buffer(by, join_style="mitre", mitre_limit=3.0)
+            if g.is_empty or g.geom_type != "Polygon":
+                return ring
+            return np.asarray(g.exterior.coords)[:-1, ::-1]
+
+        return (p.to_latlon(grown(outer, margin_m)),
+                [p.to_latlon(grown(r, -margin_m)) for r in no_fly])
 
     def to_dict(self) -> dict[str, Any]:
         n = self.counts()

@@ -89,6 +89,10 @@ class SitlConfig:
     ekf_delay_s: float = 3.0
     #: the camera's RTP/H.264 stream (`sitl --video-port`, sim/mavlink/video.py); port 0: off
     video: VideoConfig = field(default_factory=VideoConfig)
+    #: a real field (`sim.field.PolygonField`, from `uavsearch field`): its grid (at its heading),
+    #: its polygon rendered, the spawn and targets on its searchable cells; `home` and `grid`
+    #: must be its origin and size. None: today's north-aligned rectangle
+    polygon: Any = None
     # port overrides (None: PX4 SITL's numbering for this instance)
     api_local_port: int | None = None
     api_remote_port: int | None = None
@@ -130,7 +134,10 @@ class SitlConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """The config for provenance records; the signing key itself is never written out."""
-        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("signing_key", "grid")}
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("signing_key", "grid", "polygon")}
+        if self.polygon is not None:
+            d["polygon"] = {"source": self.polygon.source, "heading_deg": self.polygon.heading_deg,
+                            "width": self.polygon.width, "height": self.polygon.height}
         d.update(home=asdict(self.home), geofence=asdict(self.geofence), grid=self.grid.to_dict(), gps=asdict(self.gps),
                  signing=self.signing_key is not None, tlog=None if self.tlog is None else str(self.tlog),
                  sysid=self.sysid, api_ports=self.api_ports, gcs_ports=self.gcs_ports, video=asdict(self.video))
@@ -164,7 +171,7 @@ class Sitl(BackgroundRunner):
         self.cfg = cfg
         # the field: episode, home at the spawn point (the field's cell (0, 0) lies at -spawn in
         # local NED), rendered paddock and camera; shared with the worlds real autopilots fly
-        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s)
+        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s, polygon=cfg.polygon)
         self.episode = self.scene.episode
         self.home = self.scene.home
         self.field_origin = self.scene.field_origin

@@ -1,6 +1,6 @@
 """The downward camera: 100 deg field of view, 50 x 50 px by default (any size: `sitl
---camera-px`), rendered headless with PyBullet's software renderer. Image top is north (f, -y),
-image right is east (+x).
+--camera-px`), rendered headless with PyBullet's software renderer. Image top is the grid's f (-y), image
+right its r (+x): north and east on today's grid, the grid's heading on a real field's.
 
 At 3.5 m the footprint is 2 * 3.5 * tan(50 deg) = 8.3 m: about four 2 m cells, a little more
 than the grid world's 3 x 3 view, as in the paper's Gazebo setup (Section VI-C). Higher, it
@@ -24,10 +24,20 @@ ALTITUDE_M = 3.5
 #: the camera hangs this far below the airframe's reference point
 CAMERA_BELOW_M = 0.06
 class DownCamera:
-    def __init__(self, client: int, width: int = 50, height: int = 50, fov_deg: float = 100.0) -> None:
+    def __init__(self, client: int, width: int = 50, height: int = 50, fov_deg: float = 100.0,
+                 heading_deg: float = 0.0) -> None:
+        """heading_deg: the bearing the image's top points at: the gimbal keeps the image aligned
+        to the grid, whose -y axis (the move f) points there (a real field's grid, `sim.field`);
+        0, north-up as always."""
         if width < 1 or height < 1 or not 1 < fov_deg < 179:
             raise ValueError("camera needs a positive size and 1 < fov < 179 degrees")
+        if not np.isfinite(heading_deg):
+            raise ValueError(f"camera heading must be finite degrees (got {heading_deg!r})")
         self.cid, self.width, self.height, self.fov = client, width, height, fov_deg
+        self.heading_deg = float(heading_deg)
+        h = np.radians(self.heading_deg)
+        #: the image's top as an ENU direction (east, north, up)
+        self._up = [0, 1, 0] if self.heading_deg == 0.0 else [float(np.sin(h)), float(np.cos(h)), 0.0]
         self.proj = p.computeProjectionMatrixFOV(fov_deg, width / height, 0.05, 50.0, physicsClientId=client)
 
     def render_enu(self, eye_enu: np.ndarray, attitude_rad: tuple[float, float, float] | None = None) -> np.ndarray:
@@ -36,9 +46,10 @@ class DownCamera:
         vehicle hovers: `missions.detector_curve`); None, exactly nadir and north-up."""
         eye = [float(eye_enu[0]), float(eye_enu[1]), float(eye_enu[2])]
         if attitude_rad is None:
-            view = p.computeViewMatrix(eye, [eye[0], eye[1], 0.0], [0, 1, 0], physicsClientId=self.cid)
+            view = p.computeViewMatrix(eye, [eye[0], eye[1], 0.0], self._up, physicsClientId=self.cid)
         else:
-            q = p.getQuaternionFromEuler([float(a) for a in attitude_rad])
+            roll, pitch, yaw = (float(a) for a in attitude_rad)
+            q = p.getQuaternionFromEuler([roll, pitch, yaw - float(np.radians(self.heading_deg))])
             rot = np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3)
             look, up = rot @ np.array([0.0, 0.0, -1.0]), rot @ np.array([0.0, 1.0, 0.0])
             view = p.computeViewMatrix(eye, [eye[i] + float(look[i]) for i in range(3)], [float(v) for v in up],

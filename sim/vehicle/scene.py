@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.gridworld import GridConfig, cell_to_ned, sample_episodes
+from sim.gridworld import GridConfig, GridFrame, cell_to_ned, sample_episodes
 
 from .geo import HomePosition
 
@@ -34,13 +34,30 @@ def check_camera_px(px: object) -> int:
 
 
 class FieldScene:
-    def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float) -> None:
+    def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float,
+                 polygon=None) -> None:
         """field_origin: cell (0, 0)'s centre; home becomes the spawn point, and the field's
-        cell (0, 0) lies at -spawn in local NED."""
+        cell (0, 0) lies at -spawn in local NED. polygon: a real field (`sim.field.PolygonField`,
+        its grid the same as `grid`'s and its origin field_origin): the grid at its heading, the
+        spawn cell and the targets on its searchable cells (the largest 4-connected part, which
+        a vehicle never crossing a no-fly zone can reach), the ground rendered as its polygon;
+        None, today's north-aligned rectangle."""
         self.grid = grid
         self.target_step_s = target_step_s
-        self.episode = sample_episodes(grid, 1, episode_seed)
-        spawn_ne = cell_to_ned(self.episode.agent[0])
+        self.polygon = polygon
+        #: cell <-> field NED (about cell (0, 0)): the one mapping (sim.gridworld.coords.GridFrame)
+        self.frame = GridFrame(0.0 if polygon is None else float(polygon.heading_deg))
+        if polygon is None:
+            self.episode = sample_episodes(grid, 1, episode_seed)
+            spawn_ne = cell_to_ned(self.episode.agent[0])
+        else:
+            from sim.gridworld.masks import largest_component
+
+            if (polygon.width, polygon.height, polygon.cell_m) != (grid.width, grid.height, 2.0):
+                raise ValueError(f"the polygon field's grid ({polygon.width} x {polygon.height} of {polygon.cell_m} m) "
+                                 f"is not the scene's ({grid.width} x {grid.height} of 2 m)")
+            self.episode = sample_episodes(grid, 1, episode_seed, mask=largest_component(np.asarray(polygon.mask)))
+            spawn_ne = self.frame.cell_to_ned(self.episode.agent[0])
         self.field_origin = HomePosition(field_origin.lat_deg, field_origin.lon_deg, field_origin.alt_m)
         self.home = HomePosition(*self.field_origin.ned_to_geodetic(np.array([spawn_ne[0], spawn_ne[1], 0.0])))
         self.spawn_ne = spawn_ne
@@ -57,9 +74,16 @@ class FieldScene:
 
         g = self.grid
         camera_px = check_camera_px(camera_px)
+        if self.polygon is None:
+            self.field = Field(client, g.width, g.height, g.n_targets, seed=seed, origin=self.episode.agent[0],
+                               edge=edge, margin_cells=MARGIN_CELLS)
+            self.cam = DownCamera(client, camera_px, camera_px)
+            return
+        outer, rings = self.polygon.rings_ne()
+        no_fly = [(z.kind, r) for z, r in zip(self.polygon.no_fly, rings, strict=True)]
         self.field = Field(client, g.width, g.height, g.n_targets, seed=seed, origin=self.episode.agent[0], edge=edge,
-                           margin_cells=MARGIN_CELLS)
-        self.cam = DownCamera(client, camera_px, camera_px)
+                           margin_cells=MARGIN_CELLS, frame=self.frame, polygon=(outer, no_fly))
+        self.cam = DownCamera(client, camera_px, camera_px, heading_deg=self.frame.heading_deg)
 
     def note_armed(self, t: float, armed: bool) -> None:
         """The targets start moving at the first arming."""
@@ -84,6 +108,8 @@ class FieldScene:
     def vehicle_cell(self, position_ned: np.ndarray) -> np.ndarray:
         """The true cell under a vehicle at local NED position_ned (fractional)."""
         ned = position_ned[:2] + self.spawn_ne
+        if self.polygon is not None:
+            return self.frame.ned_to_cell(ned)
         return np.array([ned[1] / 2.0, -ned[0] / 2.0])
 
     def field_ne(self, position_ned: np.ndarray) -> tuple[float, float]:

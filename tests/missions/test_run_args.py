@@ -66,3 +66,17 @@ def test_a_video_camera_without_its_sdp_or_stream_is_refused_by_name(tmp_path: P
         r = runner.invoke(app, ["run", *ORIGIN, "--out", str(tmp_path / "o"), *args])
         assert r.exit_code == 2, (args, r.output)
         assert all(w in _text(r.output) for w in words), (args, r.output)
+
+
+def test_a_real_field_sets_the_grid_and_origin(tmp_path: Path) -> None:
+    """`run --field field.json` (a real field, `uavsearch field`): its grid and origin are not to
+    be changed by hand; a hand-edited field is refused naming the file."""
+    real = Path(__file__).parents[2] / "examples" / "fields" / "out" / "pond_meadow" / "field.json"
+    r = runner.invoke(app, ["run", "--field", str(real), "--width", "5", "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "--width" in _text(r.output) and "sets it" in _text(r.output), r.output
+    bad = json.loads(real.read_text())
+    bad["mask"][5] = bad["mask"][5].replace("s", "x", 1)
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    r = runner.invoke(app, ["run", "--field", str(tmp_path / "bad.json"), "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "bad.json" in _text(r.output) and "mask" in _text(r.output), r.output
+    assert not (tmp_path / "o").exists()

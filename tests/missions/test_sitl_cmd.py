@@ -33,6 +33,21 @@ def test_sitl_writes_the_field_the_companion_needs(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "--cell-m" in r.output
 
 
+def test_sitl_field_renders_a_real_field_and_names_it_for_the_companion(tmp_path: Path) -> None:
+    from missions.fieldfile import read_field
+
+    real = Path(__file__).parents[2] / "examples" / "fields" / "out" / "l_paddock_30deg" / "field.json"
+    r = runner.invoke(app, ["sitl", "--instance", "34", "--physics", "kinematic", "--speedup", "0", "--duration", "0.5",
+                            "--field", str(real), "--width", "3", "--field-out", str(tmp_path / "f.json")])
+    assert r.exit_code == 0, r.output
+    assert "25 x 24 cells" in r.output and "heading 30.00 deg" in r.output
+    fs = read_field(tmp_path / "f.json")
+    assert (fs.grid.width, fs.grid.height, fs.polygon) == (25, 24, str(real.resolve()))
+    assert abs(fs.origin.lat_deg - 51.4548218) < 1e-6, "the origin is the field's cell (0, 0)"
+    r = runner.invoke(app, ["sitl", "--field", str(real), "--count", "2"])
+    assert r.exit_code == 2 and "--field" in r.output
+
+
 def test_sitl_video_port_writes_the_sdp_and_the_field_file_names_it(tmp_path: Path) -> None:
     from missions.fieldfile import read_field
 
