@@ -1,16 +1,23 @@
-"""The companion computer: MAVLink link, GPS estimator, probabilistic map, camera detector,
-and the policy service that flies the search.
+"""The companion computer: it flies the search over a real MAVLink link to any autopilot.
 
-Rooms by concern: `dialects/` (what each autopilot family needs: PX4, ArduPilot), `camera/`
-(frame sources: a MAVLink camera component, a video stream), `preflight.py` (the
-companion-loss failsafe check), `journal.py` / `resume.py` (a restarted companion goes on)."""
+Rooms by concern (one sub-package each, so a newcomer finds the room by its name):
+- `link/`: the thin MAVLink connection (`connection.py`), what each autopilot family needs
+  (`dialects/`: PX4, ArduPilot) and the companion's own `.tlog`;
+- `camera/`: frame sources (a MAVLink camera component, an RTP/H.264 video stream);
+- `detection/`: a frame to what the policy sees (the detector, the view I at any level, the
+  memory of which blobs are targets already found);
+- `localisation/`: where the vehicle is (the GPS estimator, the telemetry intake, the GPS-free
+  registrations on the field's edge and on found targets);
+- `service/`: the search itself (the policy loop, the pilot, the height flown, the fence, the
+  preflight failsafe check, the bring-down on every exit, the journal a restarted companion
+  resumes from, the probabilistic map and the search's data)."""
 
-from .detector import DetectorConfig, cell_fractions, frame_to_view
-from .estimator import EstimatorConfig, GpsEstimator, PositionPosterior
-from .images import FrameAssembler, decode_png
-from .link import CommandRejected, LinkError, Telemetry, VehicleLink
-from .probmap import ProbabilisticVisitationMap, cell_probabilities
-from .service import PolicyService, SearchLog, SearchSpec
+from .camera import FrameAssembler, decode_png
+from .detection.detector import DetectorConfig, cell_fractions, frame_to_view
+from .link.connection import CommandRejected, LinkError, Telemetry, VehicleLink
+from .localisation.estimator import EstimatorConfig, GpsEstimator, PositionPosterior
+from .service.policy_service import PolicyService, SearchLog, SearchSpec
+from .service.probmap import ProbabilisticVisitationMap, cell_probabilities
 
 __all__ = [
     "CommandRejected", "DetectorConfig", "EstimatorConfig", "FrameAssembler", "GpsEstimator", "LinkError",

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-import autopilot_bridge.service as service
-from autopilot_bridge.fence import FencePlan
+import autopilot_bridge.service.policy_service as service
+from autopilot_bridge.service.fence import FencePlan
 from provenance import atomic_write_json, stamp
 from sim.gridworld import GridConfig, cell_to_ned
 

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
+from autopilot_bridge.camera import FrameRequester, decode_png_stamped
 from autopilot_bridge.camera.video import VideoSource
-from autopilot_bridge.images import FrameRequester, decode_png_stamped
-from autopilot_bridge.link import VehicleLink
+from autopilot_bridge.link.connection import VehicleLink
 from sim.mavlink import Sitl, SitlConfig
 from sim.mavlink.images import encode_png
 from sim.mavlink.video import VideoConfig

@@ -20,7 +20,7 @@ cell in view is lit. Those numbers are measured here, not invented:
   has targets to count: a random cell has a target under it one time in forty), the others
   over a cell drawn evenly from the field (the false alarms of a field as it is: counted on
   those only, so the cells beside a target are not over-weighted);
-- the companion's detector (`autopilot_bridge.detector.find_blobs`, told the height flown)
+- the companion's detector (`autopilot_bridge.detection.detector.find_blobs`, told the height flown)
   finds the blobs and puts each in a cell of the window (`window_cells`, the camera's offset
   from its cell known: the detector's part, not the estimator's). A target in view is seen
   when its cell is lit; an empty on-field cell in view that is lit is a false alarm.
@@ -149,7 +149,7 @@ def measure(cfg: CurveConfig, on_frame: Callable[[int], None] | None = None) -> 
     """Render cfg.frames frames and count what the detector saw against the truth, per level."""
     import pybullet as p
 
-    from autopilot_bridge.detector import DetectorConfig, find_blobs, window_cells
+    from autopilot_bridge.detection.detector import DetectorConfig, find_blobs, window_cells
     from sim.gridworld import GridConfig, cell_to_ned
     from sim.vehicle.camera import CAMERA_BELOW_M
     from sim.vehicle.geo import HomePosition

@@ -4,7 +4,7 @@ position estimate it sent) and from the simulator's truth, never from the compan
 
 - `setpoints`, `setpoints_outside_fence`: the SET_POSITION_TARGET_LOCAL_NED positions the
   vehicle received, and how many lie outside the fence the companion uploaded (the autopilot's
-  own test, in its estimate's frame: `autopilot_bridge.fence.where`, integer 1e-7 degrees);
+  own test, in its estimate's frame: `autopilot_bridge.service.fence.where`, integer 1e-7 degrees);
   `setpoints_outside_rings`, the same against the field's rings as drawn (information: in the
   estimate's frame a border cell's setpoint lies past the ring by the bias it is shifted by).
 - `setpoints_off_field`: how many of those positions, less the GPS bias the companion had
@@ -48,7 +48,7 @@ def field_checks(field, fence, tlog: Path, spawn_ne: np.ndarray, truth: np.ndarr
     """The checks above for one flight. field: `sim.field.PolygonField`; fence: the uploaded
     `FencePlan`; tlog: the SITL's; spawn_ne: home in the field's NED (the vehicle's local origin);
     truth: (T, 3) simulated s, true north, east about cell (0, 0); counters: the vehicle's."""
-    from autopilot_bridge.fence import to_e7, where
+    from autopilot_bridge.service.fence import to_e7, where
 
     msgs = _tlog_messages(Path(tlog), {"SET_POSITION_TARGET_LOCAL_NED", "GLOBAL_POSITION_INT"})
     proj = field.projection

@@ -46,7 +46,7 @@ def on_polygon_grid(pf, grid: GridConfig) -> GridConfig:
 def field_spec(pf) -> dict[str, Any]:
     """SearchSpec's entries for a real field: the area (heading, mask, edges) and the fence
     (its rings, with room for the autopilot's estimate: fence.FIELD_MARGIN_M)."""
-    from autopilot_bridge.fence import FIELD_MARGIN_M, FencePlan
-    from autopilot_bridge.field_area import FieldArea
+    from autopilot_bridge.service.fence import FIELD_MARGIN_M, FencePlan
+    from autopilot_bridge.service.field_area import FieldArea
 
     return {"area": FieldArea.of_field(pf), "fence": FencePlan.of_field(pf, FIELD_MARGIN_M)}

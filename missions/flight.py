@@ -176,8 +176,8 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     the grid is the field's (`grid`'s size is replaced)."""
     if camera not in ("mavlink", "video"):
         raise ValueError(f"camera must be 'mavlink' or 'video' (got {camera!r})")
-    from autopilot_bridge.link import VehicleLink
-    from autopilot_bridge.service import PolicyService, SearchSpec, save_log
+    from autopilot_bridge.link.connection import VehicleLink
+    from autopilot_bridge.service.policy_service import PolicyService, SearchSpec, save_log
     from missions.flight_policy import flight_policy
     from missions.guarded import EXIT_OK, EXIT_SHORT, guarded_search
     from missions.progress import FlightProgress
@@ -288,7 +288,7 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
 
         checks = field_checks(field, fence, out / "flight.tlog", sitl.spawn_ne, truth, sitl.vehicle.counters,
                               log.setpoint_field_ne)
-        from autopilot_bridge.fence import FIELD_MARGIN_M
+        from autopilot_bridge.service.fence import FIELD_MARGIN_M
 
         checks["fence_margin_m"] = FIELD_MARGIN_M
         # the companion's posterior is in the grid's frame (ahead, right): the truth too, for NEES and offsets
@@ -349,7 +349,7 @@ def _real_autopilot(held: ExitStack, autopilot: str, speedup: float, grid: GridC
     companion's link and camera: (the scorer's view of it, the link, the frame source). The
     companion connects before the binary starts, so it hears from the first heartbeat."""
     from autopilot_bridge.camera import open_source
-    from autopilot_bridge.link import VehicleLink
+    from autopilot_bridge.link.connection import VehicleLink
     from missions.autopilot_flight import WorldVehicle, hold_instance
     from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
 

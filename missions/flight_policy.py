@@ -59,14 +59,14 @@ def flight_policy(name: str | None, checkpoint: Path | None, grid: GridConfig, s
 
 def blank_observation(grid: GridConfig) -> Observation:
     """The first observation of a search in the field's middle: nothing seen, nothing visited."""
-    from autopilot_bridge.view import valid_moves
+    from autopilot_bridge.detection.view import valid_moves
 
     cell = np.array([grid.width // 2, grid.height // 2])
     view = np.zeros((1, 3, 3, 3), np.uint8)
     view[0, 2, 1, 1] = 1
     maps = np.zeros((1, grid.map_channels, grid.height, grid.width), np.float32)
     if grid.levels > 1:  # at level 1 in the levels' window, as the companion shows it (service)
-        from autopilot_bridge.view import level_valid_moves, level_view
+        from autopilot_bridge.detection.view import level_valid_moves, level_view
 
         return Observation(views=level_view(view[0], 1, grid.levels, cell, grid.width, grid.height)[None], maps=maps,
                            positions=cell[None].astype(np.int64), valid=level_valid_moves(cell, 1, grid)[None],

@@ -3,7 +3,7 @@
 `guarded_search` runs take-off (or a resumed search's rejoin), search and landing; whatever
 stops it (Ctrl-C, SIGTERM, a link error, a timeout, an exception in the policy) it stops the
 OFFBOARD stream, hands the vehicle to `--on-abort` (rtl, land or hold; see
-autopilot_bridge.abort), waits bounded for the disarm, and returns the cause and the exit
+autopilot_bridge.service.abort), waits bounded for the disarm, and returns the cause and the exit
 status for the CLI. Signals raise in the main thread only while the flight runs; during the
 bring-down a further signal only ends the wait (the vehicle keeps its RTL/LAND), it never
 interrupts a command half-sent.
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot_bridge.abort import AbortAction, Touchdown, bring_down
-from autopilot_bridge.link import VehicleLink
-from autopilot_bridge.service import PolicyService, SearchLog
+from autopilot_bridge.link.connection import VehicleLink
+from autopilot_bridge.service.abort import AbortAction, Touchdown, bring_down
+from autopilot_bridge.service.policy_service import PolicyService, SearchLog
 
 EXIT_OK = 0
 EXIT_FAILED = 1  # the flight failed (link error, timeout, exception): the vehicle was brought down
@@ -96,7 +96,7 @@ def guarded_search(service: PolicyService, link: VehicleLink, on_abort: AbortAct
                    echo: Callable[[str], None] = print, move_timeout_s: float = 20.0,
                    rejoin: Callable[[], tuple[int, np.ndarray, float]] | None = None) -> FlightEnd:
     """rejoin: a journaled search resumed (`uavsearch run --resume`): instead of the take-off,
-    it takes the vehicle back wherever it is (autopilot_bridge.resume) and returns the decision
+    it takes the vehicle back wherever it is (autopilot_bridge.service.resume) and returns the decision
     loop's (move, cell, t_k) to go on from; a failure there brings the vehicle down as any."""
     with signals_raise() as sig:
         shown = service.on_progress

@@ -24,8 +24,8 @@ def fly_lossy_search(faults: LinkFaults, seed: int = 0, max_moves: int | None = 
     """Fly one search with every datagram of the companion's link through `faults` (both ways).
     Returns moves, frames, error (None when the search completed and the vehicle landed and
     disarmed), the proxy's fault counts and the link's retry/error counts."""
-    from autopilot_bridge.link import VehicleLink
-    from autopilot_bridge.service import PolicyService, SearchSpec
+    from autopilot_bridge.link.connection import VehicleLink
+    from autopilot_bridge.service.policy_service import PolicyService, SearchSpec
     from policy.nn import load_policy
     from sim.mavlink import Sitl, SitlConfig
 

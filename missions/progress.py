@@ -11,7 +11,7 @@ from types import TracebackType
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from autopilot_bridge.service import Progress as Step
+from autopilot_bridge.service.policy_service import Progress as Step
 
 
 class FlightProgress:

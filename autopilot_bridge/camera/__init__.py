@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from ..link import VehicleLink, check_address
+from ..link.connection import VehicleLink, check_address
 from .mavlink_camera import CameraNotFound, CameraTarget, FrameRequester, MavlinkCamera
 from .png import TIME_KEY, FrameAssembler, decode_png, decode_png_stamped
 from .source import FrameSource, Stamped

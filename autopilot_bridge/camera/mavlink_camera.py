@@ -23,7 +23,7 @@ import numpy as np
 # the camera protocol's ids (mavutil's default MAVLink 1 dialect lacks them)
 from pymavlink.dialects.v20 import common as mavlink
 
-from ..link import CommandRejected, LinkError, VehicleLink, resend_until_acked
+from ..link.connection import CommandRejected, LinkError, VehicleLink, resend_until_acked
 from .png import FrameAssembler
 from .source import Stamped, ask_until_whole
 
@@ -255,5 +255,5 @@ class MavlinkCamera:
             self.link.close()
 
 
-#: the name it had when the autopilot served the frames (autopilot_bridge.images)
+#: the name it had when the autopilot served the frames (autopilot_bridge.camera)
 FrameRequester = MavlinkCamera

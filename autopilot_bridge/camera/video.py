@@ -19,7 +19,7 @@ camera pixel's colour; the SEI names the camera's size and each block is average
 converted to RGB exactly (yuv420_to_rgb), so the detector sees the frame it would have seen
 over MAVLink within a level or two of colour.
 
-Same methods as the MAVLink FrameRequester (autopilot_bridge/images.py); a stream cannot be
+Same methods as the MAVLink FrameRequester (autopilot_bridge/camera/mavlink_camera.py); a stream cannot be
 asked for a capture at an instant, so `ask` does nothing and `timed_captures` is False (the
 take-off then flies on command timing: Pilot._ask_ahead).
 """

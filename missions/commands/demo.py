@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from autopilot_bridge.abort import AbortAction
+from autopilot_bridge.service.abort import AbortAction
 
 DEFAULT_POLICIES = ["oracle", "cu", "ns", "frontier", "lawnmower", "random", "belief"]
 

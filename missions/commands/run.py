@@ -4,9 +4,9 @@ Every exit path brings the vehicle down (see missions/guarded.py) and writes the
 the exit status says how it ended: 0 all |R| found and landed, 3 the search ended short of |R|,
 1 a failure (the vehicle was sent to --on-abort), 128+N interrupted by signal N (130 Ctrl-C).
 
-After every decision the search's state goes into OUT/journal.json (autopilot_bridge.journal):
+After every decision the search's state goes into OUT/journal.json (autopilot_bridge.service.journal):
 `uavsearch run --resume OUT` after a crash of this process goes on with the same search, the
-vehicle taken back in the air or taken off again (autopilot_bridge.resume), and its log is the
+vehicle taken back in the air or taken off again (autopilot_bridge.service.resume), and its log is the
 whole search."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from autopilot_bridge.abort import AbortAction
+from autopilot_bridge.service.abort import AbortAction
 from missions.commands import options as _levels  # --levels, --detection (docs/altitude.md)
 from missions.commands.options import Dist, Motion
 
@@ -91,11 +91,18 @@ def register(app: typer.Typer) -> None:
         detection: Path | None = _levels.DETECTION,
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
-        from autopilot_bridge.dialects import NAMES as AUTOPILOTS
-        from autopilot_bridge.journal import ENDED, JOURNAL, Journal, JournalError, load, read
-        from autopilot_bridge.link import VehicleLink
-        from autopilot_bridge.resume import rejoin
-        from autopilot_bridge.service import PolicyService, SearchSpec, save_log
+        from autopilot_bridge.link.connection import VehicleLink
+        from autopilot_bridge.link.dialects import NAMES as AUTOPILOTS
+        from autopilot_bridge.service.journal import (
+            ENDED,
+            JOURNAL,
+            Journal,
+            JournalError,
+            load,
+            read,
+        )
+        from autopilot_bridge.service.policy_service import PolicyService, SearchSpec, save_log
+        from autopilot_bridge.service.resume import rejoin
         from missions.field_run import field_spec
         from missions.fieldfile import FieldFileError, FieldSpec, read_field
         from missions.flight_policy import PolicyUnfit, flight_policy
@@ -231,7 +238,7 @@ def register(app: typer.Typer) -> None:
                        f"{field} says {g0.width} x {g0.height} with {g0.n_targets}", err=True)
         edge = pick(field_edge, fs.edge if fs is not None else False)
         address = connect or (fs.connect if fs is not None and fs.connect else "udpin:0.0.0.0:14540")
-        from autopilot_bridge.link import check_address
+        from autopilot_bridge.link.connection import check_address
 
         try:
             check_address(address)

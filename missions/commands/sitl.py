@@ -258,8 +258,8 @@ def register(app: typer.Typer) -> None:
 
 def _with_levels(grid, levels: int, detection: Path | None):
     """The search grid with altitude levels (the field file's), refused where the camera's frame
-    would not cover the top level's window at its height (autopilot_bridge.height)."""
-    from autopilot_bridge.height import footprint_margin_m
+    would not cover the top level's window at its height (autopilot_bridge.service.height)."""
+    from autopilot_bridge.service.height import footprint_margin_m
     from missions.commands.options import with_levels
 
     if levels == 1 and detection is None:
@@ -276,7 +276,7 @@ def _heights(levels: int) -> str:
 
 
 def _margin(levels: int) -> float:
-    from autopilot_bridge.height import footprint_margin_m
+    from autopilot_bridge.service.height import footprint_margin_m
 
     return footprint_margin_m(levels)
 

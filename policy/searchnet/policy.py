@@ -31,7 +31,7 @@ def obs_tensors(planes: np.ndarray, positions: np.ndarray, valid: np.ndarray,
 
 class SearchNetPolicy(Policy):
     name = "searchnet"
-    #: left out of a flight's journal (autopilot_bridge.snapshot): the fast forward is a copy
+    #: left out of a flight's journal (autopilot_bridge.service.snapshot): the fast forward is a copy
     #: of the model's weights with work buffers, rebuilt by reset(); a fresh one has no
     #: constants in its buffer yet, which _constants_in_buffer = False (reset's) says
     journal_skip = ("fast", "_fast", "_constants_in_buffer")

@@ -1,7 +1,7 @@
 """Camera frames over MAVLink's image transmission protocol: a DATA_TRANSMISSION_HANDSHAKE
 (type PNG, size, width, height, packet count) followed by ENCAPSULATED_DATA packets of 253
 bytes. PNG keeps a 50 x 50 frame to ~4 kB (about 16 packets). The receiving side is
-autopilot_bridge.images.FrameAssembler.
+autopilot_bridge.camera.FrameAssembler.
 
 Each PNG carries the simulated time it was captured at in a tEXt chunk ("sim_time_s"), so a
 receiver can match a frame to telemetry and GPS fixes of the same instant (the image

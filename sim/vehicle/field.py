@@ -5,7 +5,7 @@ moved by the grid world's placement and motion models. Visual only: nothing coll
 Round the grass, optionally, the paddock's edge: a headland track of bare earth from the grid's
 outer cell borders out (a real field is fenced, a track or stubble beside the fence). The
 companion sees it within two cells of the border and registers on it (a position measurement
-with no lattice ambiguity: `autopilot_bridge.detector.find_edges`). Without it the ground is
+with no lattice ambiguity: `autopilot_bridge.detection.detector.find_edges`). Without it the ground is
 grass to the horizon and only the targets tell the camera where it truly is."""
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ Its own module because the rectangle's ground (`sim.vehicle.field.Field`) is two
 polygon is a triangle mesh (shapely's constrained Delaunay triangulation, holes left out), laid
 flat a few millimetres apart so the camera sees each layer where it belongs. The colours are
 far from the grass, the track and every coat, so the companion's detector can tell them from
-targets (`autopilot_bridge.detector.NOFLY_RGB`, rendered values)."""
+targets (`autopilot_bridge.detection.detector.NOFLY_RGB`, rendered values)."""
 
 from __future__ import annotations
 

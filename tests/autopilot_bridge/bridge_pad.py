@@ -11,12 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot_bridge.detector import Blob, px_per_m
-from autopilot_bridge.estimator import GpsEstimator
-from autopilot_bridge.link import VehicleLink
-from autopilot_bridge.registration import Registration
-from autopilot_bridge.search_data import SearchSpec
-from autopilot_bridge.telemetry import TelemetryIntake
+from autopilot_bridge.detection.detector import Blob, px_per_m
+from autopilot_bridge.link.connection import VehicleLink
+from autopilot_bridge.localisation.estimator import GpsEstimator
+from autopilot_bridge.localisation.registration import Registration
+from autopilot_bridge.localisation.telemetry import TelemetryIntake
+from autopilot_bridge.service.search_data import SearchSpec
 from sim.gridworld import GridConfig
 from sim.mavlink import Sitl, SitlConfig
 

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from real_sitl import arducopter, px4_sih
 
-from autopilot_bridge.abort import bring_down
-from autopilot_bridge.link import VehicleLink
-from autopilot_bridge.preflight import UnsafeFailsafe, ensure_failsafe, read_failsafe
+from autopilot_bridge.link.connection import VehicleLink
+from autopilot_bridge.service.abort import bring_down
+from autopilot_bridge.service.preflight import UnsafeFailsafe, ensure_failsafe, read_failsafe
 from sim.mavlink import Sitl, SitlConfig
 
 ALT = 3.5

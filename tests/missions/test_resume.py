@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from autopilot_bridge.journal import read
+from autopilot_bridge.service.journal import read
 from missions.resume_trial import (
     companion,
     kill_at_move,

@@ -14,8 +14,8 @@ import time
 import pytest
 from plain_gcs import Gcs, M
 
-from autopilot_bridge.link import VehicleLink
-from autopilot_bridge.service import PolicyService, SearchSpec
+from autopilot_bridge.link.connection import VehicleLink
+from autopilot_bridge.service.policy_service import PolicyService, SearchSpec
 from sim.mavlink.modes import px4_custom_mode
 
 

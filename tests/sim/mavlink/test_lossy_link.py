@@ -15,7 +15,7 @@ import pytest
 from pymavlink import mavutil
 from udp_ports import free_udp_port
 
-from autopilot_bridge.images import FrameAssembler
+from autopilot_bridge.camera import FrameAssembler
 from missions.lossy import upload_like_qgc
 from sim.mavlink.faultproxy import FaultProxy, LinkFaults
 from sim.mavlink.images import frame_messages
@@ -202,8 +202,8 @@ def test_a_timed_capture_asked_again_later_is_the_same_picture(lossy_sitl) -> No
     comes, so the receiver can fill its gaps. It used to render a new picture after 3 wall
     seconds, which threw the gathered chunks away (one frame took 16 s, and a 64-move search
     through 20 % loss failed)."""
-    from autopilot_bridge.images import FrameRequester
-    from autopilot_bridge.link import VehicleLink
+    from autopilot_bridge.camera import FrameRequester
+    from autopilot_bridge.link.connection import VehicleLink
     from sim.mavlink.camera_component import FRAME_REUSE_S
 
     faults = LinkFaults(duplicate=0.05, reorder=0.05, delay_ms=(0.0, 2.0), reorder_ms=10)
@@ -225,7 +225,7 @@ def test_a_land_resent_after_touchdown_is_accepted(sitl_factory) -> None:
     """LAND's ACK lost, the companion resends it; meanwhile the vehicle has landed and
     disarmed. The resent LAND must not be refused (it was: TEMPORARILY_REJECTED, and a
     64-move search through 20 % loss that had flown every move ended as a failure)."""
-    from autopilot_bridge.link import VehicleLink
+    from autopilot_bridge.link.connection import VehicleLink
 
     sitl = sitl_factory(physics="kinematic", speedup=10.0, gcs_link=False)
     with VehicleLink(f"udpin:127.0.0.1:{sitl.cfg.api_ports[1]}") as link:

@@ -15,7 +15,7 @@ import pytest
 from plain_gcs import Gcs, M
 from pymavlink import mavutil
 
-from autopilot_bridge.images import FrameAssembler
+from autopilot_bridge.camera import FrameAssembler
 from sim.mavlink import Geofence
 from sim.mavlink.sitl import TICK_S
 

@@ -3,7 +3,7 @@ target_step_s of simulated time from the first arming, for the whole episode."""
 
 import numpy as np
 
-from autopilot_bridge.link import VehicleLink
+from autopilot_bridge.link.connection import VehicleLink
 from sim.gridworld import GridConfig
 
 

@@ -121,7 +121,7 @@ def test_a_lockstep_hold_streams_the_frame_of_its_instant(tmp_path: Path) -> Non
     """A companion-lockstep SITL holds at a capture asked for ahead (here off the stream's
     10 Hz lattice): the frame of that tick goes out on the stream while time stands still."""
     from autopilot_bridge.camera import MavlinkCamera
-    from autopilot_bridge.link import VehicleLink
+    from autopilot_bridge.link.connection import VehicleLink
 
     cfg = SitlConfig(physics="kinematic", camera=True, speedup=5.0, gcs_link=False, companion_lockstep=True,
                      api_local_port=27021, api_remote_port=27022, video=VideoConfig(port=27023))
