@@ -71,10 +71,17 @@ class AltitudeParams:
     #: the gain counts p_eff = 1 - (1 - p_d) ** looks: a cell in a footprint is looked at
     #: again from the next cells along the way, so the far rings' low p_d undervalues them
     looks: float = 1.0
+    #: moving targets: a cell believed occupied above this is near a sighted target (chased
+    #: at level 1), below it the mass is looked for
+    chase_min: float = 0.1
+    #: ... and the mass of such cells around a cell counts this much at that cell (the view
+    #: from level 1 sees them: the chase goes on from there)
+    chase_around: float = 0.3
 
     def __post_init__(self) -> None:
         for k in ("pickup", "travel_offset", "return_cost", "cluster", "tour_below", "tie_reveal", "stick",
-                  "edge", "outer", "looks", "confirm", "min_footprint_p"):
+                  "edge", "outer", "looks", "confirm", "min_footprint_p", "chase_min",
+                  "chase_around"):
             if not getattr(self, k) >= 0:
                 raise ValueError(f"AltitudeParams.{k} must be >= 0 (got {getattr(self, k)})")
         if not self.return_scale > 0:
@@ -144,8 +151,13 @@ class AltitudeRule:
         cfg, prm = self.cfg, self.params
         u = belief.target.astype(np.float32)
         if cfg.moving:
-            close = u
-            diffuse = u
+            # a sighted target moves on and its mass spreads over the cells it may have reached
+            # (0.2 each after one step of a random walk): the mass above `chase_min` is a target
+            # to chase down at level 1 (`chase_around` of its neighbours' too), the rest is
+            # looked for (from above)
+            near = np.where(u > prm.chase_min, u, np.float32(0.0))
+            diffuse = np.maximum(u - near, 0.0)
+            close = near + prm.chase_around * (self.window(near, 1) - near)
         else:
             # a sighting below `confirm` is still a place to look (from above: cheap), not yet one
             # to descend to: a false alarm from level 3 is believed at ~0.7 until a look refutes it
