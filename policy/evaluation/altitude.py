@@ -163,7 +163,7 @@ def write_altitude(doc: dict[str, Any], out: Path, note: str = "", command: str 
         lines += ["Command:", "", "    " + command, ""]
     det = doc["config"]["detection"]
     lines += [f"Levels L = {doc['config']['levels']}; {doc['episodes']} test episodes per cell, test seed "
-              f"{doc['seed']} (the single-height weights were tuned on seeds 777 and 4242, the altitude rule's on 777); git {doc.get('git_revision')}.",
+              f"{doc['seed']} (the single-height weights were tuned on seeds 777 and 4242, the altitude rule's on 777, its moving-target chase on 12345); git {doc.get('git_revision')}.",
               "", f"Detection table: p_detect {det['p_detect']}, false alarms per cell "
               f"{det['false_alarm_per_cell']}, heights {det['height_m']} m.", ""]
     for label, rows in doc["table"].items():
