@@ -74,6 +74,8 @@ class AltitudeParams:
     #: moving targets: a cell believed occupied above this is near a sighted target (chased
     #: at level 1), below it the mass is looked for
     chase_min: float = 0.1
+    #: a pickup goes to the next cell of the shortest path through every sighted cell
+    pickup_tour: bool = True
     #: ... and the mass of such cells around a cell counts this much at that cell (the view
     #: from level 1 sees them: the chase goes on from there)
     chase_around: float = 0.3
@@ -139,6 +141,7 @@ class AltitudeRule:
         self.tour = np.full((n, cfg.n_targets * 4, 2), -1, np.int64)
         self.tour_len = np.zeros(n, np.int64)
         self.tour_cells = np.zeros((n, h, w), bool)
+        self.following = np.zeros(n, bool)  # the last goal was the tour's
         self.goal = np.full((n, 3), -1, np.int64)  # (x, y, level) of the last decision
         self.top = top_level(cfg, params.max_level, params.min_footprint_p)
         rmax = self.top
@@ -172,6 +175,7 @@ class AltitudeRule:
                           1.0).astype(np.float32)
         out = np.empty((self.n, cfg.levels) + d.shape[1:], np.float32)
         self._gains = []
+        self._pick = close  # where a pickup is (the tour's test)
         for lv in range(1, cfg.levels + 1):
             gain = ring_gain(diffuse, self.p[lv - 1], self.window)
             self._gains.append(gain)
@@ -181,7 +185,8 @@ class AltitudeRule:
                 gain = gain + prm.pickup * close
             dl = np.abs(lv - level).astype(np.float32)
             back = np.maximum(level - lv, 0).astype(np.float32) * prm.return_cost * left
-            out[:, lv - 1] = gain / (d + (dl + back)[:, None, None] + prm.travel_offset)
+            cost = d + (dl + back)[:, None, None] + prm.travel_offset
+            out[:, lv - 1] = gain / cost
             if lv > self.top:
                 out[:, lv - 1] = -np.inf
         # staying where one is (same cell, same level) recovers and reveals nothing new
@@ -203,11 +208,14 @@ class AltitudeRule:
         return np.stack([cell % w, cell // w, lv + 1], axis=1)
 
     # ------------------------------------------------------------------------ the tour
-    def _tour_goals(self, belief, pos: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    def _tour_goals(self, belief, pos: np.ndarray, rows: np.ndarray, fresh: np.ndarray | None = None) -> np.ndarray:
         """(m, 2) the next sighted cell of each episode's tour (rows), planning new tours
-        where a cell was sighted that the tour does not hold; -1 where none is left."""
+        where a cell was sighted that the tour does not hold (or `fresh`: from here, the last
+        tour left behind); -1 where none is left."""
         sighted = belief.sighted[rows] > 0
         new = (sighted & ~self.tour_cells[rows]).any(axis=(1, 2))
+        if fresh is not None:
+            new |= fresh
         if new.any():
             self._plan(rows[new], pos[new], sighted[new])
         cells = self.tour[rows]
@@ -249,12 +257,21 @@ class AltitudeRule:
         goal = self._choose(self._values(belief, pos, level))
         if not cfg.moving:
             touring = active & (belief.unsighted < prm.tour_below) & (belief.sighted.sum(axis=(1, 2)) > 0)
+            if prm.pickup_tour:
+                # a pickup chosen: the sighted cells are visited in the order of the shortest path
+                # through all of them (not nearest first, which leaves the far end of a group)
+                gx, gy = goal[:, 0], goal[:, 1]
+                touring |= active & (goal[:, 2] == 1) & (self._pick[self.rows, gy, gx] > 0)
             if touring.any():
                 rows = self.rows[touring]
-                tg = self._tour_goals(belief, pos[rows], rows)
+                tg = self._tour_goals(belief, pos[rows], rows, fresh=~self.following[rows])
                 ok = tg[:, 0] >= 0
                 goal[rows[ok], :2] = tg[ok]
                 goal[rows[ok], 2] = 1
+                self.following[:] = False
+                self.following[rows[ok]] = True
+            else:
+                self.following[:] = False
         self.goal = goal
         return self._move(pos, level, goal, valid, belief)
 
