@@ -34,14 +34,27 @@ ROWS: dict[str, tuple[str, dict[str, Any], bool]] = {
 
 @dataclass(frozen=True)
 class AltitudeSetting:
+    """One episode class of the table: the grid, its targets and how they are placed and move."""
+
     label: str
     width: int
     height: int
     targets: int
     t_e: int = 300
+    distribution: str = "random"
+    motion: str = "static"
+    #: gaussian placement and the lattices, scaled with the field (the paper's 10 x 10 values
+    #: doubled on 20 x 20: mean (3, 5) -> (6, 10), sd 1 -> 2, spacing 2 -> 4)
+    gaussian_mean: tuple[float, float] = (3.0, 5.0)
+    gaussian_sd: float = 1.0
+    grid_spacing: int = 2
 
     def config(self, levels: int, detection: DetectionTable | None) -> GridConfig:
         return GridConfig(width=self.width, height=self.height, n_targets=self.targets, t_e=self.t_e,
+                          distribution=self.distribution, motion=self.motion,  # type: ignore[arg-type]
+                          map_variant="spatiotemporal" if self.motion != "static" else "spatial",
+                          gaussian_mean=self.gaussian_mean, gaussian_sd=self.gaussian_sd,
+                          grid_spacing=self.grid_spacing,
                           levels=levels, detection=detection if levels > 1 else None)
 
 
@@ -49,6 +62,15 @@ SETTINGS: tuple[AltitudeSetting, ...] = (
     AltitudeSetting("random 10x10/5", 10, 10, 5),
     AltitudeSetting("random 20x20/10", 20, 20, 10),
     AltitudeSetting("random 30x30/15, t_e 1000", 30, 30, 15, t_e=1000),
+    # the quality table's other classes (policy.evaluation.quality.SETTINGS) on 20 x 20 / 10
+    AltitudeSetting("gaussian 20x20/10", 20, 20, 10, distribution="gaussian", gaussian_mean=(6.0, 10.0),
+                    gaussian_sd=2.0),
+    AltitudeSetting("equidistant 20x20/10", 20, 20, 10, distribution="equidistant", grid_spacing=4),
+    # moving targets: t_e 1000 (at 300 a fifth to a half of the single-height episodes end
+    # with targets left, and the mean reads the limit)
+    AltitudeSetting("random walk 20x20/10, t_e 1000", 20, 20, 10, t_e=1000, motion="random_walk"),
+    AltitudeSetting("herd 20x20/10, t_e 1000", 20, 20, 10, t_e=1000, distribution="equidistant", motion="herd",
+                    grid_spacing=4),
 )
 
 
@@ -141,7 +163,7 @@ def write_altitude(doc: dict[str, Any], out: Path, note: str = "", command: str 
         lines += ["Command:", "", "    " + command, ""]
     det = doc["config"]["detection"]
     lines += [f"Levels L = {doc['config']['levels']}; {doc['episodes']} test episodes per cell, test seed "
-              f"{doc['seed']} (the single-height weights were tuned on seeds 777 and 4242, the altitude rule's on 777); git {doc.get('git_revision')}.",
+              f"{doc['seed']} (the single-height weights were tuned on seeds 777 and 4242, the altitude rule's on 777, its moving-target chase on 12345); git {doc.get('git_revision')}.",
               "", f"Detection table: p_detect {det['p_detect']}, false alarms per cell "
               f"{det['false_alarm_per_cell']}, heights {det['height_m']} m.", ""]
     for label, rows in doc["table"].items():

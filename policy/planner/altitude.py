@@ -12,6 +12,10 @@ pairs. For every cell g and level l:
   cells (a descent pays once for a group).
 - time(g, l): moves: the horizontal distance plus the level changes, plus `return_cost` per
   level below the current one while targets are still believed unsighted (the climb back).
+- Moving targets: the mass above `chase_min` (a sighted target spreading as it moves) is
+  close(g), chased down at level 1 with weight `chase_pickup`; the rest is looked for.
+- A pickup chosen (static targets; `pickup_tour`) goes to the next cell of the shortest path
+  through every sighted cell, not the nearest: a group is collected end to end.
 - Once fewer than `tour_below` targets are believed unsighted (static targets): the shortest
   tour through the sighted cells at level 1 (Held-Karp up to TOUR_EXACT cells, nearest
   neighbour beyond), recomputed only when a new cell is sighted (a suffix of an optimal path
@@ -39,7 +43,8 @@ TOUR_EXACT = 9
 
 @dataclass(frozen=True)
 class AltitudeParams:
-    """The altitude rule's weights (tuned on seeds 777 and 4242, never the test seeds)."""
+    """The altitude rule's weights (tuned on seeds 777 and 4242, the moving-target chase and
+    the pickup tour on 12345; never the test seeds)."""
 
     pickup: float = 3.0
     travel_offset: float = 0.5
@@ -71,10 +76,22 @@ class AltitudeParams:
     #: the gain counts p_eff = 1 - (1 - p_d) ** looks: a cell in a footprint is looked at
     #: again from the next cells along the way, so the far rings' low p_d undervalues them
     looks: float = 1.0
+    #: moving targets: a cell believed occupied above this is near a sighted target (chased
+    #: at level 1), below it the mass is looked for
+    chase_min: float = 0.05
+    #: moving targets: the pickup weight of such mass (a chase left for later must find the
+    #: target again: worth more than a static pickup)
+    chase_pickup: float = 6.0
+    #: ... and the mass of such cells around a cell counts this much at that cell (the view
+    #: from level 1 sees them: the chase goes on from there)
+    chase_around: float = 0.3
+    #: a pickup goes to the next cell of the shortest path through every sighted cell
+    pickup_tour: bool = True
 
     def __post_init__(self) -> None:
         for k in ("pickup", "travel_offset", "return_cost", "cluster", "tour_below", "tie_reveal", "stick",
-                  "edge", "outer", "looks", "confirm", "min_footprint_p"):
+                  "edge", "outer", "looks", "confirm", "min_footprint_p", "chase_min", "chase_pickup",
+                  "chase_around"):
             if not getattr(self, k) >= 0:
                 raise ValueError(f"AltitudeParams.{k} must be >= 0 (got {getattr(self, k)})")
         if not self.return_scale > 0:
@@ -132,6 +149,7 @@ class AltitudeRule:
         self.tour = np.full((n, cfg.n_targets * 4, 2), -1, np.int64)
         self.tour_len = np.zeros(n, np.int64)
         self.tour_cells = np.zeros((n, h, w), bool)
+        self.following = np.zeros(n, bool)  # the last goal was the tour's
         self.goal = np.full((n, 3), -1, np.int64)  # (x, y, level) of the last decision
         self.top = top_level(cfg, params.max_level, params.min_footprint_p)
         rmax = self.top
@@ -144,8 +162,13 @@ class AltitudeRule:
         cfg, prm = self.cfg, self.params
         u = belief.target.astype(np.float32)
         if cfg.moving:
-            close = u
-            diffuse = u
+            # a sighted target moves on and its mass spreads over the cells it may have reached
+            # (0.2 each after one step of a random walk): the mass above `chase_min` is a target
+            # to chase down at level 1 (`chase_around` of its neighbours' too), the rest is
+            # looked for (from above)
+            near = np.where(u > prm.chase_min, u, np.float32(0.0))
+            diffuse = np.maximum(u - near, 0.0)
+            close = near + prm.chase_around * (self.window(near, 1) - near)
         else:
             # a sighting below `confirm` is still a place to look (from above: cheap), not yet one
             # to descend to: a false alarm from level 3 is believed at ~0.7 until a look refutes it
@@ -160,16 +183,18 @@ class AltitudeRule:
                           1.0).astype(np.float32)
         out = np.empty((self.n, cfg.levels) + d.shape[1:], np.float32)
         self._gains = []
+        self._pick = close  # where a pickup is (the tour's test)
         for lv in range(1, cfg.levels + 1):
             gain = ring_gain(diffuse, self.p[lv - 1], self.window)
             self._gains.append(gain)
             if prm.outer > 0:
                 gain = gain + prm.outer * (self.window(diffuse, lv + 2) - self.window(diffuse, lv))
             if lv == 1:
-                gain = gain + prm.pickup * close
+                gain = gain + (prm.chase_pickup if cfg.moving else prm.pickup) * close
             dl = np.abs(lv - level).astype(np.float32)
             back = np.maximum(level - lv, 0).astype(np.float32) * prm.return_cost * left
-            out[:, lv - 1] = gain / (d + (dl + back)[:, None, None] + prm.travel_offset)
+            cost = d + (dl + back)[:, None, None] + prm.travel_offset
+            out[:, lv - 1] = gain / cost
             if lv > self.top:
                 out[:, lv - 1] = -np.inf
         # staying where one is (same cell, same level) recovers and reveals nothing new
@@ -191,11 +216,14 @@ class AltitudeRule:
         return np.stack([cell % w, cell // w, lv + 1], axis=1)
 
     # ------------------------------------------------------------------------ the tour
-    def _tour_goals(self, belief, pos: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    def _tour_goals(self, belief, pos: np.ndarray, rows: np.ndarray, fresh: np.ndarray | None = None) -> np.ndarray:
         """(m, 2) the next sighted cell of each episode's tour (rows), planning new tours
-        where a cell was sighted that the tour does not hold; -1 where none is left."""
+        where a cell was sighted that the tour does not hold (or `fresh`: from here, the last
+        tour left behind); -1 where none is left."""
         sighted = belief.sighted[rows] > 0
         new = (sighted & ~self.tour_cells[rows]).any(axis=(1, 2))
+        if fresh is not None:
+            new |= fresh
         if new.any():
             self._plan(rows[new], pos[new], sighted[new])
         cells = self.tour[rows]
@@ -237,12 +265,21 @@ class AltitudeRule:
         goal = self._choose(self._values(belief, pos, level))
         if not cfg.moving:
             touring = active & (belief.unsighted < prm.tour_below) & (belief.sighted.sum(axis=(1, 2)) > 0)
+            if prm.pickup_tour:
+                # a pickup chosen: the sighted cells are visited in the order of the shortest path
+                # through all of them (not nearest first, which leaves the far end of a group)
+                gx, gy = goal[:, 0], goal[:, 1]
+                touring |= active & (goal[:, 2] == 1) & (self._pick[self.rows, gy, gx] > 0)
             if touring.any():
                 rows = self.rows[touring]
-                tg = self._tour_goals(belief, pos[rows], rows)
+                tg = self._tour_goals(belief, pos[rows], rows, fresh=~self.following[rows])
                 ok = tg[:, 0] >= 0
                 goal[rows[ok], :2] = tg[ok]
                 goal[rows[ok], 2] = 1
+                self.following[:] = False
+                self.following[rows[ok]] = True
+            else:
+                self.following[:] = False
         self.goal = goal
         return self._move(pos, level, goal, valid, belief)
 
