@@ -11,6 +11,7 @@ shows it from then on).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -65,6 +66,9 @@ class FoundTargets:
 
     def __init__(self, spec: SearchSpec, estimator: GpsEstimator, intake: TelemetryIntake) -> None:
         self.spec, self.estimator, self.intake = spec, estimator, intake
+        #: the camera's height over the field the blobs are read at (m): the spec's commanded
+        #: one, or the height flown (the service sets autopilot_bridge.height.FlownHeight's)
+        self.camera_height: Callable[[], float] = spec.camera_height
         #: targets found (or seen again since): (simulated time, receiver-frame north, east)
         self._found_at: list[tuple[float, np.ndarray]] = []
         #: the field cell each found target stands on, by _found_at's index; None where the
@@ -98,7 +102,7 @@ class FoundTargets:
         minutes). Without this a target found a cell off the nadir, or
         seen from the next cell with the posterior a metre off, was found twice (20 flights:
         84 % truly found, every flight believing 5/5)."""
-        height = self.spec.camera_height()
+        height = self.camera_height()
         reading = self.reading_at(t)
         ids = self.identify(t, blobs) if ids is None else ids
         below: list[Blob] = []
@@ -146,7 +150,7 @@ class FoundTargets:
         """Per blob of one frame: the found target (its index) it is, or None (`assign`). A blob
         whose near end only shows at the frame's edge (`Blob.beyond_view`) is placed FAR_REACH_M
         beyond that near end along the cut, as any cut sighting."""
-        height = self.spec.camera_height()
+        height = self.camera_height()
         reading = self.reading_at(t)
         at = [reading + self._match_offset(b, height) for b in blobs]
         return self.assign(t, at, [b.cut_axes for b in blobs])
@@ -214,7 +218,7 @@ class FoundTargets:
         there, wherever the camera estimate now puts it: the policy's world shows found targets
         where they were found, and one shown a cell away was a target it had not found, which
         it chased back and forth (flight seed 9: 54 moves against 22 in the grid world)."""
-        height = self.spec.camera_height()
+        height = self.camera_height()
         ids = self.identify(t, blobs) if ids is None else ids
         return [None if i is None or b.beyond_view(height) else self._told_cells[i]
                 for b, i in zip(blobs, ids, strict=True)]
@@ -237,7 +241,7 @@ class FoundTargets:
         registration on it a cell off (flight seed 11: 146 moves; held-out 30 and 34)."""
         reading = self.reading_at(t)
         for b in blobs:
-            off = np.asarray(b.offset_ne(self.spec.camera_height()))
+            off = np.asarray(b.offset_ne(self.camera_height()))
             self._found_at.append((t, reading + off))
             at = camera_ne + off
             x, y = (int(v) for v in nearest_cell(at))

@@ -121,7 +121,9 @@ def state_of(service: PolicyService) -> tuple[dict[str, Any], dict[str, np.ndarr
         "intake": {"last_gps_t": intake.last_gps_t, "fixes": fixes, "fixes_late": intake.fixes_late,
                    "input_waits_timed_out": intake.input_waits_timed_out, "sim_time_s": intake.sim_time_s,
                    "first_fix_t": intake.first_fix_t, "dropped_until": intake._dropped_until},
-        "pilot": {"t_ref": service.pilot.t_ref, "t_offboard": service.pilot.t_offboard},
+        "pilot": {"t_ref": service.pilot.t_ref, "t_offboard": service.pilot.t_offboard,
+                  # the altitude level the next move flies (only with levels: older journals read the same)
+                  **({"level": service.height.level} if service.height.levels > 1 else {})},
     }
     tree = {k: enc.encode(v, k) for k, v in plain.items()}
     tree["policy"], _ = snapshot(service.policy, "policy", enc)
@@ -273,6 +275,8 @@ def _restore(service: PolicyService, tree: dict[str, Any], arrays: dict[str, np.
     intake.sim_time_s = max(float(i["sim_time_s"]), intake.sim_time_s)
     intake._dropped_until = float(i["dropped_until"])
     service.pilot.t_ref, service.pilot.t_offboard = part["pilot"]["t_ref"], part["pilot"]["t_offboard"]
+    if service.height.levels > 1:  # the rejoin flies its height (resume._hand_over)
+        service.height.set_level(int(part["pilot"].get("level", 1)))
     service.policy.reset(service.spec.grid, 1, service.seed)
     restore(service.policy, tree["policy"], arrays, "policy")
 

@@ -72,11 +72,21 @@ class Pilot:
         #: the search height in the autopilot's local frame (down, m): fixed at take-off from
         #: home's height there (TelemetryIntake.home_down_local)
         self.search_d = -spec.altitude_m
+        #: home's height in the local frame (down, m) the search height is counted from
+        self.home_d = 0.0
 
     def set_search_height(self) -> float:
         """Fix the search height over home in the local frame (before a take-off, and when a
         resumed search rejoins); returns it (down, m)."""
-        self.search_d = self.intake.home_down_local() - self.spec.altitude_m
+        self.home_d = self.intake.home_down_local()
+        self.search_d = self.home_d - self.spec.altitude_m
+        return self.search_d
+
+    def change_height(self, altitude_m: float) -> float:
+        """Fly the search at altitude_m over home from the next setpoint on (an altitude level's
+        height, autopilot_bridge.height); counted from the home height take-off fixed, so every
+        level stands on the same ground. Returns the new search height (down, m)."""
+        self.search_d = self.home_d - altitude_m
         return self.search_d
 
     def climbed(self, above_m: float) -> bool:

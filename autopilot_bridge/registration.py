@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -63,6 +64,9 @@ class Registration:
                  intake: TelemetryIntake, found: FoundTargets | None = None) -> None:
         self.link, self.spec, self.estimator, self.intake = link, spec, estimator, intake
         self.launch_registered = False
+        #: the camera's height over the field the frames are read at (m): the spec's commanded
+        #: one, or the height flown (the service sets autopilot_bridge.height.FlownHeight's)
+        self.camera_height: Callable[[], float] = spec.camera_height
         #: the targets found: which of a frame's blobs they are, and the cells they stand on
         self.found = found if found is not None else FoundTargets(spec, estimator, intake)
 
@@ -111,7 +115,7 @@ class Registration:
         are weighed against a frame the edge has already put right. Returns how many."""
         if not self.spec.register or not edges:
             return 0
-        g, height = self.spec.grid, self.spec.camera_height()
+        g, height = self.spec.grid, self.camera_height()
         used = 0
         for e in edges:
             sd = _edge_sd(e.offset_m, height)
@@ -132,7 +136,7 @@ class Registration:
         border, which the frame did not show; a cow registered there for 5 decisions)."""
         if not self.spec.register or not self.spec.field_edge:
             return
-        g, height = self.spec.grid, self.spec.camera_height()
+        g, height = self.spec.grid, self.camera_height()
         reach = half_footprint_m(height, fov_deg) - EDGE_REACH_MARGIN_M
         sd = _edge_sd(reach, height)
         seen = {(e.axis, e.side) for e in edges}
@@ -161,7 +165,7 @@ class Registration:
         g = self.spec.grid
         used, off_centre = 0, False
         cell_m = 2.0
-        height = self.spec.camera_height()
+        height = self.camera_height()
         for b in sorted(blobs, key=lambda b: b.fuse_sd_m(height)):
             if b.beyond_view(height):
                 continue
@@ -212,7 +216,7 @@ class Registration:
         `register_targets`: those not found before, and found ones whose cell was not sure."""
         if not self.spec.register or self.spec.grid.moving or not len(self.found):
             return 0, blobs
-        height = self.spec.camera_height()
+        height = self.camera_height()
         ids = self.found.identify(t, blobs) if ids is None else ids
         used, rest = 0, []
         for b, i in zip(blobs, ids, strict=True):

@@ -171,5 +171,8 @@ def _arm_after_failsafe(link, by_heartbeat: bool, wait_s: float = 15.0) -> None:
 
 def _hand_over(service: PolicyService, here: np.ndarray) -> None:
     """Start the setpoint stream where the vehicle is, at the search height, and take the
-    dialect's guided mode: the tail of `Pilot.take_off`, from wherever the vehicle is."""
+    dialect's guided mode: the tail of `Pilot.take_off`, from wherever the vehicle is. With
+    altitude levels, at the journaled level's height (the next frame waits for it to settle)."""
+    if service.height.levels > 1:
+        service.pilot.change_height(service.height.altitude_m())
     service.pilot.start_stream(here)

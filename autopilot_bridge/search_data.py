@@ -106,6 +106,10 @@ class SearchLog:
     recentred: int = 0
     #: times centring on a target put the camera over the next cell (the search went on there)
     centred_into_next: int = 0
+    #: per decision: the altitude level flown (1 without levels) and the camera's height over
+    #: the field its frame was read at (m: the commanded one, or with levels the one flown)
+    levels_flown: list[int] = field(default_factory=list)
+    camera_height_m: list[float] = field(default_factory=list)
     #: per decision: the targets seen, [north, east] offsets from the camera (m)
     blobs: list[list[list[float]]] = field(default_factory=list)
     frames: int = 0

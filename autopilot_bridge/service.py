@@ -31,20 +31,29 @@ from collections.abc import Callable
 import numpy as np
 
 from policy.base import Observation, Policy
-from sim.gridworld import DELTAS, cell_to_ned, nearest_cell
+from sim.gridworld import DELTAS, LEVEL_DELTAS, cell_to_ned, nearest_cell
 
 from .camera import FrameSource, MavlinkCamera
 from .detector import DetectorConfig, find_blobs
 from .edges import find_edges
 from .estimator import GpsEstimator
 from .found import FoundTargets
+from .height import FlownHeight
 from .link import LinkError, VehicleLink
 from .pilot import DECISION_DEADLINE_S, FRAME_DEADLINE_S, Pilot
 from .probmap import ProbabilisticVisitationMap, cell_probabilities
 from .registration import Registration
 from .search_data import Progress, SearchLog, SearchSpec, save_log
 from .telemetry import READING_SD_M, TelemetryIntake
-from .view import blobs_to_view, far_likelihood, show_beside, show_cells, valid_moves
+from .view import (
+    blobs_to_view,
+    far_likelihood,
+    level_valid_moves,
+    level_view,
+    show_beside,
+    show_cells,
+    valid_moves,
+)
 
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 
@@ -82,6 +91,11 @@ class PolicyService:
         self.found = FoundTargets(spec, self.estimator, self.intake)
         self.registration = Registration(link, spec, self.estimator, self.intake, self.found)
         self.pilot = Pilot(link, spec, self.estimator, self.intake, self.registration, self.log, self.frames)
+        #: the altitude level flown and the camera's height as flown (autopilot_bridge.height);
+        #: with levels the parts that read blobs take the height flown, not the commanded one
+        self.height = FlownHeight(spec, self.intake)
+        if spec.grid.levels > 1:
+            self.found.camera_height = self.registration.camera_height = lambda: self.height.camera_m
         #: called after each decision with (next move, its cell, its simulated time): the
         #: journal a restarted companion resumes from (autopilot_bridge.journal); None: none
         self.journal: Callable[[int, np.ndarray, float], None] | None = None
@@ -104,7 +118,8 @@ class PolicyService:
             if frame is None:
                 return None, max(t_at, self.intake.sim_time_s)
             t_frame = t_at if t_frame is None else t_frame
-            if self.intake.settled_at(t_frame, local):
+            if self.intake.settled_at(t_frame, local) and (
+                    self.height.levels == 1 or self.intake.height_settled_at(t_frame, self.pilot.search_d)):
                 # a frame captured later than asked (this computer or its link too slow for
                 # the speed-up) is flown on, counted: that decision is not reproducible
                 self.log.late_frames += int(t_frame > t_at + 0.1)
@@ -143,17 +158,21 @@ class PolicyService:
             # world 33, seed 25 36 against 24)
             self.policy.reset(g, 1, self.seed)
         found = len(self.log.believed_found)
+        levels = g.levels > 1  # altitude levels (docs/altitude.md): the level is part of each move
         for move in range(first, max_moves + 1):
+            lv = self.height.level
             for attempt in range(RECENTRE + 1):
                 frame, t_k = self._capture(t_k, local, cell, timeout_per_move)
                 t0 = time.perf_counter()
                 self.intake.fuse_until(t_k)
                 if self.spec.register and self.spec.map_from_reading:
                     self.intake.fuse_reading(t_k, READING_SD_M)
-                blobs = find_blobs(frame, self.det) if frame is not None else []
+                # the camera's height: the commanded one (one level), else as flown at t_k
+                cam_h = self.height.read(t_k, self.pilot.home_d) if levels else self.spec.camera_height()
+                blobs = (find_blobs(frame, self.det, cam_h if levels else None) if frame is not None else [])
                 # the field's edge first: exact along its axis, it puts the frame right before the
                 # targets' lattice is weighed
-                edges = find_edges(frame, self.spec.camera_height(), self.det.fov_deg) if frame is not None else []
+                edges = find_edges(frame, cam_h, self.det.fov_deg) if frame is not None else []
                 self.registration.register_edges(t_k, edges)
                 if frame is not None:
                     self.registration.register_unseen_edges(t_k, edges, self.det.fov_deg)
@@ -164,6 +183,8 @@ class PolicyService:
                 registered += known
                 where = self._camera_ne(t_k, self.estimator.posterior(t_k).mean_ned[:2])
                 below, aside = self.found.new_targets(t_k, blobs, cell, where, ids)
+                if lv > 1:  # a find, and centring on one, at level 1 only (the grid world's rule)
+                    below, aside = [], []
                 if below or not aside or attempt == RECENTRE or self.pmap.met[cell[1], cell[0]] > 0.5:
                     break
                 # a target not found before in this cell but not under the camera: centre on it
@@ -173,11 +194,13 @@ class PolicyService:
                 here = self.intake.local_at(t_k)
                 if here is None:
                     break
-                local = self.pilot.set_local(here + np.asarray(aside[0].offset_ne(self.spec.camera_height())))
+                local = self.pilot.set_local(here + np.asarray(aside[0].offset_ne(cam_h)))
                 t_k = t_k + self.spec.decision_period_s
             if attempt:
                 cell = self._centred_cell(t_k, cell)
-            height = self.spec.camera_height()
+            height = cam_h
+            self.log.levels_flown.append(lv)
+            self.log.camera_height_m.append(round(float(height), 3))
             self.log.blobs.append([[round(v, 3) for v in b.offset_ne(height)] for b in blobs])
             self.log.registered.append(registered)
             self.log.edges.append([[e.axis, e.side, round(e.offset_m, 3)] for e in edges])
@@ -202,21 +225,25 @@ class PolicyService:
                 self.log.frames_missing += 1
                 view = np.zeros((3, 3, 3), np.uint8)
                 view[2, 1, 1] = 1
+                if levels:  # nothing seen, the level's window's off-map cells as they are
+                    view = blobs_to_view([], where, height, cell, g.width, g.height, radius=lv)
             else:
                 self.log.frames += 1
                 # each target lights the one cell its centre is in, the camera taken where the
                 # posterior says (GPS-free offsets; a target straddling windows is one target)
                 told = self.found.told_cells(t_k, blobs, ids)
                 fresh = [b for b, c in zip(blobs, told, strict=True) if c is None and b not in below and b not in aside]
-                view = blobs_to_view(fresh, where, height, cell, g.width, g.height)
+                view = blobs_to_view(fresh, where, height, cell, g.width, g.height, radius=lv)
                 show_cells(view, [c for c in told if c is not None], cell, g.width, g.height)
                 if not below:
                     show_beside(view, aside, height, cell, g.width, g.height)
-                view[0, 1, 1] |= bool(below)  # under the camera: in this cell, whatever the posterior
+                view[0, lv, lv] |= bool(below)  # under the camera: in this cell, whatever the posterior
                 # targets whose near end shows at the frame's edge, one or two cells out: given to
-                # the policy as likelihoods over cells (those of found targets left out)
-                far = [far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
-                       for b, i in zip(blobs, ids, strict=True) if b.beyond_view(height) and i is None]
+                # the policy as likelihoods over cells (those of found targets left out); with
+                # levels the soft-evidence belief reads the level's window only
+                far = [] if levels else [
+                    far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
+                    for b, i in zip(blobs, ids, strict=True) if b.beyond_view(height) and i is None]
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
                 self.last_frame = (move, frame, view[0].astype(int).tolist())
@@ -236,17 +263,20 @@ class PolicyService:
                                           self.clock() - t_start, self.log.posterior_sd_m[-1]))
             if found >= g.n_targets or move == max_moves:
                 break
-            obs = Observation(
-                views=view[None], maps=self.pmap.policy_map(g.map_variant)[None],
-                positions=cell[None].astype(np.int64), valid=valid_moves(cell, g.width, g.height, g.n_actions)[None],
-                t=np.array([move]), active=np.array([True]),
-                # the position posterior over cells: belief-state policies (policy/belief) fold the
-                # view in as an expectation over it, as in the grid world's GPS evaluation
-                position_prob=None if exact else self.pmap.current[None].astype(np.float32),
-                far_targets=np.stack(far)[None].astype(np.float32) if far else None,
-                # the finds the companion made: exact, whatever the position posterior
-                found_now=np.array([float(found_now)]),
-            )
+            if levels:
+                obs = self._level_observation(view, cell, lv, move, found_now)
+            else:
+                obs = Observation(
+                    views=view[None], maps=self.pmap.policy_map(g.map_variant)[None],
+                    positions=cell[None].astype(np.int64), valid=valid_moves(cell, g.width, g.height, g.n_actions)[None],
+                    t=np.array([move]), active=np.array([True]),
+                    # the position posterior over cells: belief-state policies (policy/belief) fold the
+                    # view in as an expectation over it, as in the grid world's GPS evaluation
+                    position_prob=None if exact else self.pmap.current[None].astype(np.float32),
+                    far_targets=np.stack(far)[None].astype(np.float32) if far else None,
+                    # the finds the companion made: exact, whatever the position posterior
+                    found_now=np.array([float(found_now)]),
+                )
             self.pilot.expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])
             stay = False
@@ -258,6 +288,9 @@ class PolicyService:
             self.log.decision_ms.append(1e3 * (time.perf_counter() - t0))
             if not stay:
                 cell = cell + DELTAS[a]
+                if levels and LEVEL_DELTAS[a]:  # climb or descend: the same cell, the next level's height
+                    self.height.set_level(lv + int(LEVEL_DELTAS[a]))
+                    self.pilot.change_height(self.height.altitude_m())
                 local = self.pilot.fly_to(cell)
             t_k = t_k + self.spec.decision_period_s
             if self.journal is not None:
@@ -265,6 +298,19 @@ class PolicyService:
         self.log.wall_s += self.clock() - t_start
         self.log.late_inputs = self.intake.input_waits_timed_out
         return self.log
+
+    def _level_observation(self, view: np.ndarray, cell: np.ndarray, level: int, move: int,
+                           found_now: int) -> Observation:
+        """The policy's observation where the field has altitude levels: the level's view laid
+        in the (4, W, W) window of the grid world's (`view.level_view`), the level flown, its
+        moves (climb, descend), and the believed cell taken as exact (the soft-evidence belief,
+        policy.belief.soft, takes exact positions: the registered camera is within a cell)."""
+        g = self.spec.grid
+        return Observation(
+            views=level_view(view, level, g.levels, cell, g.width, g.height)[None],
+            maps=self.pmap.policy_map(g.map_variant)[None], positions=cell[None].astype(np.int64),
+            valid=level_valid_moves(cell, level, g)[None], t=np.array([move]), active=np.array([True]),
+            found_now=np.array([float(found_now)]), level=np.array([level], np.int64))
 
     def _centred_cell(self, t: float, cell: np.ndarray) -> np.ndarray:
         """After centring on a target the camera may be over the next cell: the target was

@@ -54,6 +54,14 @@ Fix = tuple[float, np.ndarray, float, float]
 READING_SD_M = 0.05
 #: a LOCAL_POSITION_NED sample: (simulated time s, north, east, v north, v east)
 LocalSample = tuple[float, float, float, float, float]
+#: its vertical part, kept beside it: (simulated time s, down, v down)
+DownSample = tuple[float, float, float]
+#: "settled" in height for the camera at t_k where a decision changed the search height
+#: (altitude levels): within SETTLED_DOWN_M of the commanded height and slower than
+#: SETTLED_VSPEED vertically by the autopilot's estimate (the barometer holds decimetres; the
+#: detector reads the height flown, so a decimetre left over only scales the frame by ~2 %)
+SETTLED_DOWN_M = 0.4
+SETTLED_VSPEED = 0.5
 
 
 class TelemetryIntake:
@@ -73,6 +81,9 @@ class TelemetryIntake:
         self._fix_lock = threading.Lock()
         #: the autopilot's estimate, LOCAL_POSITION_NED
         self.local_history: deque[LocalSample] = deque(maxlen=LOCAL_KEEP)
+        #: its height (down) and vertical speed at the same stamps: the height the camera flies
+        #: at, read where the search height changes (altitude levels)
+        self.down_history: deque[DownSample] = deque(maxlen=LOCAL_KEEP)
         self.sim_time_s = 0.0  # the latest simulated time any telemetry was stamped with
         self.first_fix_t: float | None = None
         self._dropped_until = -math.inf
@@ -126,6 +137,7 @@ class TelemetryIntake:
         elif kind == "LOCAL_POSITION_NED":
             t = msg.time_boot_ms * 1e-3
             self.local_history.append((t, msg.x, msg.y, msg.vx, msg.vy))
+            self.down_history.append((t, msg.z, msg.vz))
             self.sim_time_s = max(self.sim_time_s, t)
 
     def has_fixes(self) -> bool:
@@ -218,6 +230,23 @@ class TelemetryIntake:
         _, n, e, vn, ve = sample
         near_m = max(self.arrive_m, SETTLED_M)
         return bool(np.hypot(n - local_ne[0], e - local_ne[1]) < near_m and np.hypot(vn, ve) < SETTLED_SPEED)
+
+    def down_at(self, t: float) -> tuple[float, float] | None:
+        """The autopilot's (down, v down) estimate at simulated time t: the sample stamped with
+        the one `_sample_at` reads (the same stamp rule), None without one."""
+        sample = self._sample_at(t)
+        if sample is None:
+            return None
+        for ts, d, vd in reversed(self.down_history):
+            if ts == sample[0]:
+                return d, vd
+        return None
+
+    def height_settled_at(self, t: float, down: float) -> bool:
+        """Settled at the commanded height `down` (local, m) at simulated time t, by the
+        autopilot's latest telemetry stamped up to t (SETTLED_DOWN_M, SETTLED_VSPEED)."""
+        d = self.down_at(t)
+        return d is not None and abs(d[0] - down) < SETTLED_DOWN_M and abs(d[1]) < SETTLED_VSPEED
 
     def local_at(self, t: float) -> np.ndarray | None:
         """The autopilot's (north, east) estimate at simulated time t by its telemetry."""

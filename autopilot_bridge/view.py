@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from sim.gridworld import valid_mask
+from sim.gridworld import LEVEL_ACTIONS, Action, GridConfig, valid_mask
 
 from .detector import Blob, px_per_m
 
@@ -29,19 +29,48 @@ def blob_cells(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: float,
 
 
 def blobs_to_view(blobs: list[Blob], camera_ne: np.ndarray, camera_height_m: float, cell: np.ndarray,
-                  width: int, height: int) -> np.ndarray:
-    """The (3, 3, 3) uint8 view {target, off-map, agent} around `cell` from the blobs' cells
-    (each target lights exactly one slot; targets outside the 3 x 3 window, and edge blobs of
-    targets two cells away, are not shown)."""
-    dy, dx = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
+                  width: int, height: int, radius: int = 1) -> np.ndarray:
+    """The (3, W, W) uint8 view {target, off-map, agent} around `cell`, W = 2 radius + 1, from the
+    blobs' cells (each target lights exactly one slot; targets outside the window, and edge blobs
+    of targets beyond it (`Blob.beyond_view` for this radius), are not shown). radius 1 is the
+    paper's 3 x 3 view; an altitude level l sees radius l (`level_view` lays it in the levels'
+    window)."""
+    if radius < 1:
+        raise ValueError(f"radius must be >= 1 cell (got {radius})")
+    k = 2 * radius + 1
+    dy, dx = np.meshgrid(np.arange(-radius, radius + 1), np.arange(-radius, radius + 1), indexing="ij")
     ys, xs = cell[1] + dy, cell[0] + dx
     inside = (ys >= 0) & (ys < height) & (xs >= 0) & (xs < width)
-    view = np.zeros((3, 3, 3), dtype=np.uint8)
-    near = [b for b in blobs if not b.beyond_view(camera_height_m)]
+    view = np.zeros((3, k, k), dtype=np.uint8)
+    near = [b for b in blobs if not b.beyond_view(camera_height_m, radius)]
     show_cells(view, blob_cells(near, camera_ne, camera_height_m), cell, width, height)
     view[1] = ~inside
-    view[2, 1, 1] = 1
+    view[2, radius, radius] = 1
     return view
+
+
+def level_view(view: np.ndarray, level: int, levels: int, cell: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The (3, 2l + 1, 2l + 1) view of level l (`blobs_to_view` with radius l) laid in the
+    (4, W, W) window the grid world gives a policy with altitude levels, W = 2 levels + 1:
+    channels (detection, off-map, agent, outside this level's footprint), as
+    sim.gridworld.BatchGridWorld._sampled_views builds them (tested against it)."""
+    r, rmax = int(level), int(levels)
+    if not 1 <= r <= rmax or view.shape != (3, 2 * r + 1, 2 * r + 1):
+        raise ValueError(f"a level {level} view of {levels} levels must be (3, {2 * r + 1}, {2 * r + 1}) "
+                         f"(got {view.shape})")
+    w = 2 * rmax + 1
+    off = np.arange(-rmax, rmax + 1)
+    ys, xs = cell[1] + off[:, None], cell[0] + off[None, :]
+    inside = (ys >= 0) & (ys < height) & (xs >= 0) & (xs < width)
+    ring = np.maximum(np.abs(off)[:, None], np.abs(off)[None, :])
+    out = np.zeros((4, w, w), dtype=np.uint8)
+    lo = rmax - r
+    out[0, lo:lo + 2 * r + 1, lo:lo + 2 * r + 1] = view[0]
+    out[0] &= inside
+    out[1] = ~inside
+    out[2, rmax, rmax] = 1
+    out[3] = inside & (ring > r)
+    return out
 
 
 #: a target whose near end shows at the frame's edge (`Blob.beyond_view`) has its centre this
@@ -118,13 +147,26 @@ def show_beside(view: np.ndarray, beside: list[Blob], camera_height_m: float, ce
 
 
 def show_cells(view: np.ndarray, cells: list[tuple[int, int]], cell: np.ndarray, width: int, height: int) -> None:
-    """Light, in view, the slots of these field cells (x, y) that fall in the 3 x 3 window
-    around `cell` and on the field."""
+    """Light, in view, the slots of these field cells (x, y) that fall in the view's window
+    (3 x 3, or 2 r + 1 a side) around `cell` and on the field."""
+    k = view.shape[-1]
+    half = k // 2
     for x, y in cells:
-        r, c = y - int(cell[1]) + 1, x - int(cell[0]) + 1
-        if 0 <= r < 3 and 0 <= c < 3 and 0 <= x < width and 0 <= y < height:
+        r, c = y - int(cell[1]) + half, x - int(cell[0]) + half
+        if 0 <= r < k and 0 <= c < k and 0 <= x < width and 0 <= y < height:
             view[0, r, c] = 1
 
 
 def valid_moves(cell: np.ndarray, width: int, height: int, n_actions: int = 4) -> np.ndarray:
     return valid_mask(np.asarray(cell)[None], width, height, n_actions)[0]
+
+
+def level_valid_moves(cell: np.ndarray, level: int, grid: GridConfig) -> np.ndarray:
+    """(7,) bool: the moves of a field with altitude levels, as the grid world's valid_actions:
+    the four that stay on the field, stay for moving targets only, climb below the top level,
+    descend above level 1."""
+    v = valid_mask(np.asarray(cell)[None], grid.width, grid.height, LEVEL_ACTIONS)[0]
+    v[Action.N] = grid.moving
+    v[Action.CLIMB] = level < grid.levels
+    v[Action.DESCEND] = level > 1
+    return v

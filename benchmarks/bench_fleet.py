@@ -46,9 +46,9 @@ def _ports(k: int) -> list[int]:
             s.close()
 
 
-def _cfgs(n: int, physics: str) -> list[SitlConfig]:
+def _cfgs(n: int, physics: str, camera: bool = False) -> list[SitlConfig]:
     ports = iter(_ports(4 * n))
-    return [SitlConfig(instance=i % 40, system_id=i + 1, speedup=0, physics=physics, camera=False,
+    return [SitlConfig(instance=i % 40, system_id=i + 1, speedup=0, physics=physics, camera=camera,
                        api_local_port=next(ports), api_remote_port=next(ports), gcs_local_port=next(ports),
                        gcs_remote_port=next(ports)) for i in range(n)]
 
@@ -67,6 +67,33 @@ def fleet(n: int, physics: str, seconds: float) -> float:
     f.run(duration=1.0 + seconds)
     spent = _clock() - t0
     f.stop()
+    return seconds / spent
+
+
+#: simulated seconds between two frames of one vehicle's camera in `cameras`: 4 x what a search
+#: asks (one frame per decision, SearchSpec.decision_period_s = 4 s), staggered over the fleet
+FRAME_EVERY_S = 1.0
+
+
+def cameras(n: int, physics: str, seconds: float) -> float:
+    """The fleet with every vehicle's camera rendering a frame each FRAME_EVERY_S (its own
+    PyBullet scene of the field and targets, sim/mavlink/sitl.py), as a fleet search would."""
+    f = SitlFleet(_cfgs(n, physics, camera=True))
+    _take_off(f.sitls)
+    f.run(duration=1.0)
+    ticks_per_frame = max(1, int(round(FRAME_EVERY_S / 0.02)))
+    steps = int(round(seconds / 0.02))
+    t0 = _clock()
+    frames = 0
+    for k in range(steps):
+        f.step()
+        for i in range(k % ticks_per_frame, n, ticks_per_frame):  # vehicle i's frame on its own tick
+            f.sitls[i].render_now()
+            frames += 1
+    spent = _clock() - t0
+    f.stop()
+    if frames < n * (steps // ticks_per_frame):
+        raise RuntimeError(f"cameras: {frames} frames for {n} vehicles over {seconds} s")
     return seconds / spent
 
 
@@ -106,7 +133,7 @@ def physics_only(n: int, physics: str, seconds: float) -> float:
     return seconds / spent
 
 
-RUNS = {"fleet": fleet, "separate": separate, "physics": physics_only}
+RUNS = {"fleet": fleet, "separate": separate, "physics": physics_only, "cameras": cameras}
 
 
 def _in_process(name: str, n: int, physics: str, seconds: float, baseline: Path | None) -> float:
@@ -142,7 +169,7 @@ def main() -> None:
     head = f"{'vehicles':<22}{'fleet':>10}{'separate':>10}{'fleet/sep':>11}{'physics only':>14}"
     print(head + (f"{'baseline fleet':>16}{'fleet/base':>12}" if args.baseline else ""))
     for n, physics in [(16, "pybullet"), (100, "kinematic")]:
-        jobs = [(name, None) for name in RUNS] + ([("fleet", args.baseline)] if args.baseline else [])
+        jobs = [(name, None) for name in RUNS if name != "cameras"] + ([("fleet", args.baseline)] if args.baseline else [])
         best = dict.fromkeys(jobs, 0.0)
         for _ in range(args.rounds):
             for name, base in jobs:
@@ -167,6 +194,17 @@ def main() -> None:
         if args.baseline:
             line += f"{best[args.baseline]:>9.1f}x{best[None] / best[args.baseline]:>7.2f}x"
         print(line, flush=True)
+    # cameras: every PyBullet vehicle renders its frames (goal: 4 at >= 20x, 16 at >= 10x)
+    print(f"{'pybullet with cameras':<30}{'real time':>10}{'per vehicle vs 1':>18}   "
+          f"(a {FRAME_EVERY_S:.0f} s frame per vehicle, 4x a search's)")
+    sizes = (1, 4, 16)
+    best = dict.fromkeys(sizes, 0.0)
+    for _ in range(args.rounds):
+        for n in sizes:
+            best[n] = max(best[n], _in_process("cameras", n, "pybullet", s, None))
+            loads.append(os.getloadavg()[0])
+    for n in sizes:
+        print(f"{f'  {n} vehicles':<30}{best[n]:>9.1f}x{best[n] * n / best[1]:>17.2f}x", flush=True)
     print(f"load average during the run: {min(loads):.1f}-{max(loads):.1f}"
           + (" (a loaded machine: CPU-time rates are noisy, compare the columns of one run)" if max(loads) > 2 else ""))
 

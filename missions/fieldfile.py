@@ -67,7 +67,11 @@ class FieldSpec:
                 "dialect": self.dialect,
                 "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp},
                 "autopilot": self.autopilot, "camera": self.camera,
-                "launch_ne": None if self.launch_ne is None else list(self.launch_ne)}
+                "launch_ne": None if self.launch_ne is None else list(self.launch_ne),
+                # altitude levels the companion flies (docs/altitude.md), with their detection
+                # table: only where there are levels, so files without them read as before
+                **({} if self.grid.levels == 1 else {"levels": self.grid.levels,
+                                                     "detection": self.grid.detection.to_dict()})}
 
 
 def write_field(path: Path, spec: FieldSpec, seed: int | None = None, **extra: Any) -> None:
@@ -80,8 +84,8 @@ def read_field(path: Path) -> FieldSpec:
         d = json.loads(Path(path).read_text())
     except FileNotFoundError as e:
         raise FieldFileError(f"field file {path} does not exist (uavsearch sitl writes it: --field-out)") from e
-    except (OSError, json.JSONDecodeError) as e:
-        raise FieldFileError(f"field file {path} is not readable JSON ({e})") from e
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise FieldFileError(f"field file {path} is not readable JSON ({' '.join(str(e).split())[:160]})") from e
     if not isinstance(d, dict) or d.get("kind") != KIND:
         raise FieldFileError(f"{path} is not a uavsearch field file (kind {d.get('kind') if isinstance(d, dict) else None!r})")
     try:
@@ -89,7 +93,8 @@ def read_field(path: Path) -> FieldSpec:
         origin = HomePosition(float(o["lat"]), float(o["lon"]), float(o["alt"]))
         grid = GridConfig(width=int(d["width"]), height=int(d["height"]), n_targets=int(d["targets"]),
                           distribution=d["distribution"], motion=d["motion"],
-                          target_period=int(d.get("target_period", 3)))
+                          target_period=int(d.get("target_period", 3)), levels=int(d.get("levels", 1)),
+                          detection=d.get("detection"))
         cell_m = float(d["cell_m"])
     except (KeyError, TypeError, ValueError, ConfigError) as e:
         raise FieldFileError(f"field file {path}: bad or missing entry ({type(e).__name__}: {e})") from e

@@ -64,14 +64,27 @@ CHI2_2_95 = 5.991464547107979
 
 def grid_moves(policy, episode, grid: GridConfig, seed: int) -> int:
     """Moves the same policy takes on the same episode in the grid world (the flight's yardstick)."""
+    import dataclasses
+
     from policy.base import observe
     from sim.gridworld import BatchGridWorld
 
+    if grid.levels > 1 and episode.cfg != grid:  # the SITL's field is the levels' single-height twin (field_grid): same cells
+        episode = dataclasses.replace(episode, cfg=grid)
     policy.reset(grid, 1, seed, episode if policy.needs_truth else None)
     world = BatchGridWorld(episode, seed, off_map=getattr(policy, "off_map", "random"))
     while not world.done.all():
         world.step(policy.act(observe(world)))
     return int(world.t[0])
+
+
+def field_grid(grid: GridConfig) -> GridConfig:
+    """The field the SITL simulates for a search grid: the grid itself, or with altitude levels
+    its single-height twin (the field, the targets and their placement do not depend on the
+    levels the companion flies: the same seed puts the targets on the same cells)."""
+    import dataclasses
+
+    return grid if grid.levels == 1 else dataclasses.replace(grid, levels=1, detection=None)
 
 
 def consistency(times_s: list, means: list, covs: list, truth: np.ndarray) -> dict[str, Any]:
@@ -172,13 +185,13 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
     from sim.mavlink.video import VideoConfig
 
     video = VideoConfig(port=_free_udp_ports(1)[0]) if camera == "video" else VideoConfig()
-    cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=grid,
+    cfg = SitlConfig(instance=instance, speedup=speedup, physics=physics, camera=True, grid=field_grid(grid),
                      episode_seed=seed, seed=seed, tlog=out / "flight.tlog", gcs_link=True, gps=gps,
                      companion_lockstep=lockstep, video=video, **ports)
     held = ExitStack()
     frames = None
     if autopilot != "ours":  # a real autopilot binary flies our world (sim.bridges)
-        sitl, link, frames = _real_autopilot(held, autopilot, speedup, grid, seed, gps, cfg.field_edge, out)
+        sitl, link, frames = _real_autopilot(held, autopilot, speedup, field_grid(grid), seed, gps, cfg.field_edge, out)
         lockstep = False
     else:
         link = VehicleLink(f"udpin:0.0.0.0:{cfg.api_ports[1]}", tlog=None)
@@ -268,6 +281,9 @@ def fly_search(out: Path, seed: int = 0, speedup: float = 8.0, checkpoint: Path 
                    decision_ms_p50=float(np.percentile(log.decision_ms, 50)) if log.decision_ms else None,
                    decision_ms_p99=float(np.percentile(log.decision_ms, 99)) if log.decision_ms else None,
                    simulated_s=sim_time, wall_s=time.monotonic() - t0, error=error,
+                   # simulated seconds from the first decision to the last: the search's flight time
+                   search_s=float(log.times_s[-1] - log.times_s[0]) if log.times_s else None,
+                   levels_flown=log.levels_flown, camera_height_m=log.camera_height_m,
                    tlog=str(out / ("flight.tlog" if autopilot == "ours" else "companion.tlog")),
                    plot=str(out / "search.png"))
     atomic_write_json(out / "report.json", report)

@@ -65,6 +65,13 @@ def blank_observation(grid: GridConfig) -> Observation:
     view = np.zeros((1, 3, 3, 3), np.uint8)
     view[0, 2, 1, 1] = 1
     maps = np.zeros((1, grid.map_channels, grid.height, grid.width), np.float32)
+    if grid.levels > 1:  # at level 1 in the levels' window, as the companion shows it (service)
+        from autopilot_bridge.view import level_valid_moves, level_view
+
+        return Observation(views=level_view(view[0], 1, grid.levels, cell, grid.width, grid.height)[None], maps=maps,
+                           positions=cell[None].astype(np.int64), valid=level_valid_moves(cell, 1, grid)[None],
+                           t=np.zeros(1, np.int64), active=np.ones(1, bool), found_now=np.zeros(1),
+                           level=np.ones(1, np.int64))
     return Observation(views=view, maps=maps, positions=cell[None].astype(np.int64),
                        valid=valid_moves(cell, grid.width, grid.height, grid.n_actions)[None],
                        t=np.zeros(1, np.int64), active=np.ones(1, bool))

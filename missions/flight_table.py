@@ -38,6 +38,22 @@ class FlightJob:
     #: who flies: our SITL vehicle, or a real ardupilot / px4 binary on our world (sim.bridges)
     autopilot: str = "ours"
     camera: str = "mavlink"  # mavlink | video (the SITL's RTP/H.264 stream, decoded by PyAV)
+    #: the field (width, height, |R|; None: the flight's default 10 x 10 / 5) and the altitude
+    #: levels the companion flies (docs/altitude.md) with a detection table (a JSON path; None:
+    #: the measured one shipped with sim.gridworld)
+    field: tuple[int, int, int] | None = None
+    levels: int = 1
+    detection: str | None = None
+
+    def grid(self):
+        """The GridConfig flown, or None for the flight's default field (today's flights)."""
+        if self.field is None and self.levels == 1 and self.detection is None:
+            return None
+        from sim.gridworld import DetectionTable, GridConfig
+
+        w, h, r = self.field if self.field is not None else (10, 10, 5)
+        table = DetectionTable.load(self.detection) if self.detection is not None else None
+        return GridConfig(width=w, height=h, n_targets=r, levels=self.levels, detection=table)
 
     def __post_init__(self) -> None:
         if self.speedup < 0:
@@ -56,15 +72,15 @@ def fly_one(job: FlightJob) -> dict[str, Any]:
         out = Path(job.out) / f"seed{job.seed}" if job.out else Path(tmp)
         r = fly_search(out, seed=job.seed, speedup=job.speedup, max_moves=job.max_moves, policy=job.policy,
                        gps_sigma_m=job.gps_sigma_m, visit_map=job.visit_map, plot=job.out is not None,
-                       free_ports=True, autopilot=job.autopilot, camera=job.camera)
+                       free_ports=True, autopilot=job.autopilot, camera=job.camera, grid=job.grid())
     keep = ("policy", "moves", "grid_moves", "flight_grid_ratio", "optimal_moves", "believed_found", "truly_found",
             "targets", "schedule_slips", "late_frames", "late_inputs", "lockstep_timeouts", "frames_missing", "nees_mean",
-            "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells")
+            "nees_inside_95", "nees", "simulated_s", "wall_s", "error", "cells", "search_s", "levels_flown")
     # the move cap: the job's, else the episode's t_e (the flight's default)
     cap = job.max_moves if job.max_moves is not None else int(r["config"]["t_e"])
     capped = r["moves"] >= cap and r["believed_found"] < r["targets"]
     return {"seed": job.seed, "gps_sigma_m": job.gps_sigma_m, "visit_map": job.visit_map, "capped": capped,
-            **{k: r[k] for k in keep}}
+            "levels": job.levels, **{k: r.get(k) for k in keep}}
 
 
 def fly_many(jobs: list[FlightJob], workers: int = 2) -> list[dict[str, Any]]:
@@ -112,6 +128,8 @@ def summarise(rows: list[dict[str, Any]], bias_tau_s: float = 60.0) -> dict[str,
         "schedule_slips": int(sum(r["schedule_slips"] for r in ok)),
         "late_frames": int(sum(r.get("late_frames", 0) for r in ok)),
         "late_inputs": int(sum(r.get("late_inputs", 0) for r in ok)),
+        "search_s_mean": float(np.mean([r["search_s"] for r in ok])) if ok and all(r.get("search_s") is not None
+                                                                                  for r in ok) else None,
         "goal_met": bool(len(ratios) and not any(r.get("capped") for r in ok) and len(ok) == len(rows)
                          and ratios.mean() <= GOAL_MEAN_RATIO and ratios.max() <= GOAL_MAX_RATIO),
     }
@@ -146,22 +164,28 @@ def over_interval(k: int, n: int) -> list[float] | None:
 
 def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float = 10.0,
                    policy: str | None = None, max_moves: int | None = None, autopilot: str = "ours",
-                   camera: str = "mavlink") -> dict[str, Any]:
+                   camera: str = "mavlink", field: tuple[int, int, int] | None = None, levels: int = 1,
+                   detection: str | None = None, command: str = "python -m missions flight-table") -> dict[str, Any]:
     """Fly every seed, compare with the grid world, write out/flight_vs_grid.{md,json}
-    (flight_vs_grid_<autopilot>.* when a real autopilot flies)."""
+    (flight_vs_grid_<autopilot>.* when a real autopilot flies; _WxH_R and _levelsL for another
+    field and altitude levels)."""
     from missions.flight_policy import FLIGHT_POLICY
 
     t0 = time.monotonic()
-    rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera)
-                     for s in seeds], workers)
+    rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera,
+                               field=field, levels=levels, detection=detection) for s in seeds], workers)
     summary = summarise(rows)
+    extra = {} if field is None and levels == 1 and detection is None else {
+        "field": list(field) if field is not None else None, "levels": levels, "detection": detection}
     doc = stamp({"seeds": seeds, "speedup": speedup, "workers": workers, "policy": policy or FLIGHT_POLICY,
                  "max_moves": max_moves, "visit_map": "probabilistic", "companion_lockstep": autopilot == "ours",
-                 "autopilot": autopilot, "camera": camera},
+                 "autopilot": autopilot, "camera": camera, **extra},
                  seeds[0] if seeds else None, summary=summary, rows=rows, wall_s=time.monotonic() - t0,
-                 cpus=os.cpu_count(), command="python -m missions flight-table")
+                 cpus=os.cpu_count(), command=command)
     stem = "flight_vs_grid" + ("" if autopilot == "ours" else f"_{autopilot}") + ("" if camera == "mavlink" else
                                                                                    f"_{camera}")
+    stem += "" if field is None else f"_{field[0]}x{field[1]}_{field[2]}"
+    stem += "" if levels == 1 else f"_levels{levels}"
     write_result(out, stem, doc, render_md(doc))
     return doc
 

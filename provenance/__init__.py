@@ -14,7 +14,42 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_open", "atomic_write_bytes", "atomic_write_json", "git_revision", "stamp"]
+__all__ = ["InputFileError", "atomic_open", "atomic_write_bytes", "atomic_write_json", "git_revision", "read_json",
+           "stamp"]
+
+
+class InputFileError(ValueError):
+    """A file given to us that cannot be used. `str(e)` is one line, `FILE: what is wrong`, so a
+    command prints it as it is and the operator knows which file to fix."""
+
+    def __init__(self, path: object, what: str) -> None:
+        self.path = str(path)
+        self.what = " ".join(str(what).split())  # one line, whatever a library's message held
+        super().__init__(f"{self.path}: {self.what}")
+
+
+def read_json(path: str | os.PathLike, what: str) -> Any:
+    """The JSON in `path` (a `what`: "detection table", "quality document"), or an
+    InputFileError saying in one line why not: missing, a directory, not text, empty, not JSON."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputFileError(path, "no such file") from None
+    except IsADirectoryError:
+        raise InputFileError(path, f"is a directory, not a {what}") from None
+    except UnicodeDecodeError:
+        raise InputFileError(path, f"is not text (a {what} is JSON)") from None
+    except OSError as e:
+        raise InputFileError(path, f"cannot be read ({e.strerror})") from None
+    if not text.strip():
+        raise InputFileError(path, f"is empty (a {what} is JSON)")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise InputFileError(path, f"is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+    except RecursionError:
+        raise InputFileError(path, "is not valid JSON (nested too deeply)") from None
 
 
 @lru_cache(maxsize=1)

@@ -8,6 +8,9 @@ from pathlib import Path
 
 import typer
 
+from missions.commands.options import DETECTION, LEVELS, with_levels
+from sim.gridworld import GridConfig
+
 
 def _seeds(first: int, n: int) -> list[int]:
     if n < 1:
@@ -31,15 +34,51 @@ def register(app: typer.Typer) -> None:
         camera: str = typer.Option(
             "mavlink", "--camera", help="Frames from the MAVLink camera component (mavlink) or the SITL's RTP/H.264 "
                                         "stream decoded by PyAV (video; our vehicle only)."),
+        width: int | None = typer.Option(None, "--width", min=2, help="Field width (cells) (default: 10)."),
+        height: int | None = typer.Option(None, "--height", min=2, help="Field height (cells) (default: 10)."),
+        targets: int | None = typer.Option(None, "--targets", min=1, help="Targets |R| (default: 5)."),
+        levels: int = LEVELS,
+        detection: Path | None = DETECTION,
+        baseline_levels: int | None = typer.Option(
+            None, "--baseline-levels", min=1, max=3,
+            help="Also fly the same seeds with this many levels (e.g. 1) and write OUT/flight_levels.md side by "
+                 "side (docs/altitude.md)."),
     ) -> None:
         """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
+        import sys
+
         from missions.flight_table import flight_vs_grid
 
         if autopilot not in ("ours", "ardupilot", "px4"):
             raise typer.BadParameter(f"{autopilot!r}: expected ours, ardupilot or px4", param_hint="--autopilot")
         if camera not in ("mavlink", "video") or (camera == "video" and autopilot != "ours"):
             raise typer.BadParameter(f"{camera!r}: mavlink, or video with --autopilot ours", param_hint="--camera")
-        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot, camera)
+        field = None
+        if (width, height, targets) != (None, None, None):
+            field = (width or 10, height or 10, targets or 5)
+        if levels > 1 or detection is not None or baseline_levels is not None:
+            if autopilot != "ours" or camera != "mavlink":
+                raise typer.BadParameter("altitude levels fly our SITL with its MAVLink camera", param_hint="--levels")
+            with_levels(GridConfig(), levels, detection)  # a bad table is a usage error naming it
+        command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["flight-table"] else \
+            "python -m missions flight-table"
+        det = None if detection is None else str(detection)
+        if baseline_levels is not None:
+            from missions.flight_levels import compare_levels
+
+            try:
+                cmp = compare_levels(_seeds(first_seed, seeds), out, field or (10, 10, 5), levels, baseline_levels,
+                                     workers, speedup, det, policy, max_moves, command)
+            except ValueError as e:
+                raise typer.BadParameter(str(e), param_hint="--baseline-levels") from e
+            a, b = cmp["summary"]["levels"], cmp["summary"]["baseline"]
+            typer.echo(f"levels {levels}: flight/grid mean {a['ratio_mean']}, max {a['ratio_max']}, found "
+                       f"{a['found_pct']:.1f} %, search {a['search_s_mean']} s; levels {baseline_levels}: "
+                       f"search {b['search_s_mean']} s; {out / 'flight_levels.md'}")
+            return
+        doc = flight_vs_grid(_seeds(first_seed, seeds), out, workers, speedup, policy, max_moves, autopilot, camera,
+                             field=field, levels=levels, detection=det,
+                             **({} if field is None and levels == 1 else {"command": command}))
         s = doc["summary"]
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")

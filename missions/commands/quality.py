@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from provenance import InputFileError, read_json
+
 from .options import DETECTION, LEVELS
 
 
@@ -93,12 +95,13 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(str(e)) from e
         prev = None
         if reuse is not None:
-            import json
-
             try:
-                prev = json.loads(reuse.read_text())
-            except (OSError, json.JSONDecodeError) as e:
-                raise typer.BadParameter(f"cannot read {reuse}: {e}", param_hint="--reuse") from e
+                prev = read_json(reuse, "quality document")
+            except InputFileError as e:
+                raise typer.BadParameter(str(e), param_hint="--reuse") from None
+            if not isinstance(prev, dict) or "table" not in prev or "test_seed" not in prev:
+                raise typer.BadParameter(f"{reuse}: is not a quality document (no \"table\" and \"test_seed\"; "
+                                         f"`uavsearch quality` writes one as quality.json)", param_hint="--reuse")
         doc = run_quality(qc, workers=workers, ray_address=ray_address, reuse=prev,
                           refresh=tuple(refresh or ()))
         for p in write_quality(doc, out):

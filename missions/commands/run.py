@@ -18,6 +18,7 @@ import numpy as np
 import typer
 
 from autopilot_bridge.abort import AbortAction
+from missions.commands import options as _levels  # --levels, --detection (docs/altitude.md)
 from missions.commands.options import Dist, Motion
 
 #: wall seconds the camera component has to heartbeat and describe itself (the vehicle may be
@@ -82,6 +83,10 @@ def register(app: typer.Typer) -> None:
                  "rtsp://..., /dev/videoN, a file (default: the field file's camera, else mavlink)."),
         video_sdp: Path | None = typer.Option(
             None, "--video-sdp", help="The SDP file of an RTP video stream (default: the field file's)."),
+        levels: int | None = typer.Option(
+            None, "--levels", min=1, max=3, help="Altitude levels to fly: climb and descend are moves, level l at "
+            "3.5 m (2 l + 1) / 3 over home (docs/altitude.md) (default: the field file's, else 1)."),
+        detection: Path | None = _levels.DETECTION,
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
         from autopilot_bridge.dialects import NAMES as AUTOPILOTS
@@ -194,6 +199,14 @@ def register(app: typer.Typer) -> None:
             origin = HomePosition(pick(origin_lat, o0.lat_deg), pick(origin_lon, o0.lon_deg), pick(origin_alt, o0.alt_m))
         except (ConfigError, ValueError) as e:
             raise typer.BadParameter(str(e)) from e
+        if doc is None and (levels is not None or detection is not None or g0.levels > 1):
+            # altitude levels: the option's, else the field file's (with its detection table)
+            if detection is None and levels in (None, g0.levels):
+                import dataclasses
+
+                grid = dataclasses.replace(grid, levels=g0.levels, detection=g0.detection)
+            else:
+                grid = _levels.with_levels(grid, g0.levels if levels is None else levels, detection)
         if doc is not None:  # the journaled search's field exactly (its target period too)
             grid = GridConfig.from_dict(doc.config["grid"])
         if fs is not None and (grid.width, grid.height, grid.n_targets) != (g0.width, g0.height, g0.n_targets):

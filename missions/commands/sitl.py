@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from missions.commands import options as _levels  # --levels, --detection (docs/altitude.md)
 from missions.commands.options import DIST, HEIGHT, MOTION, TARGETS, WIDTH, Dist, Motion
 
 
@@ -99,6 +100,8 @@ def register(app: typer.Typer) -> None:
             help="The downward camera's resolution, pixels a side (16..1024; 100 deg FoV at any size). The "
                  "companion reads the size from each frame; `uavsearch detector-curve --camera-px` measures what "
                  "its detector sees at that size from each flying height."),
+        levels: int = _levels.LEVELS,
+        detection: Path | None = _levels.DETECTION,
     ) -> None:
         """Start SITL vehicles (PX4 or ArduCopter flavour) and print how to connect to them."""
         from missions.fieldfile import FieldSpec, write_field
@@ -138,6 +141,9 @@ def register(app: typer.Typer) -> None:
             origin = HomePosition(lat, lon, alt)
         except (ConfigError, ValueError) as e:
             raise typer.BadParameter(str(e)) from e
+        # altitude levels: the field file tells `run --field` to fly them; the vehicle's world is
+        # the same (the camera renders at any height), its frame checked to cover the top window
+        search_grid = _with_levels(grid, levels, detection)
         # the fence must hold the whole field seen from any spawn cell: its diagonal, and a margin
         diagonal = float(np.hypot(width, height)) * cell_m
         if fence_radius is None:
@@ -201,11 +207,15 @@ def register(app: typer.Typer) -> None:
                 typer.echo(f"    video               RTP/H.264 to {video.host}:{video.port} ({video.rate_hz:g} Hz "
                            f"simulated), SDP {sdp_path}; QGroundControl: Video Source 'UDP h.264 Video Stream', "
                            f"port {video.port}")
-            write_field(fpath, FieldSpec(origin, grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
+            write_field(fpath, FieldSpec(origin, search_grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
                                          dialect=dialect.value, autopilot="ours", video_uri=uri, video_sdp=sdp_name),
                         seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
+            if levels > 1:
+                typer.echo(f"    levels              {levels} (heights {_heights(levels)} m over home; the camera's "
+                           f"frame reaches {_margin(levels):.1f} m beyond level {levels}'s {2 * levels + 1} x "
+                           f"{2 * levels + 1} cells)")
             typer.echo(f"    companion           uavsearch run --field {fpath}" + (" [--camera video]" if uri else ""))
         if key is not None:
             typer.echo("MAVLink2 signing is on: unsigned commands are dropped (MAVProxy: `signing key` with "
@@ -226,6 +236,31 @@ def register(app: typer.Typer) -> None:
             pass
         finally:
             runner.stop()
+
+
+def _with_levels(grid, levels: int, detection: Path | None):
+    """The search grid with altitude levels (the field file's), refused where the camera's frame
+    would not cover the top level's window at its height (autopilot_bridge.height)."""
+    from autopilot_bridge.height import footprint_margin_m
+    from missions.commands.options import with_levels
+
+    if levels == 1 and detection is None:
+        return grid
+    if footprint_margin_m(levels) < 0:
+        raise typer.BadParameter(f"the camera's frame does not cover level {levels}'s window", param_hint="--levels")
+    return with_levels(grid, levels, detection)
+
+
+def _heights(levels: int) -> str:
+    from sim.gridworld import level_height_m
+
+    return " / ".join(f"{level_height_m(lv):.2f}" for lv in range(1, levels + 1))
+
+
+def _margin(levels: int) -> float:
+    from autopilot_bridge.height import footprint_margin_m
+
+    return footprint_margin_m(levels)
 
 
 def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: int, speedup: float,

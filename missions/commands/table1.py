@@ -32,6 +32,14 @@ def register(app: typer.Typer) -> None:
         from policy.nn import shipped_checkpoint
 
         ckpt = drqn_checkpoint
+        if ckpt is not None:  # a bad file is said now, not after the other rows ran for an hour
+            from policy.drqn.train import load_drqn
+            from policy.nn.checkpoint import CheckpointError
+
+            try:
+                load_drqn(ckpt)
+            except CheckpointError as e:
+                raise typer.BadParameter(str(e), param_hint="--drqn-checkpoint") from None
         if ckpt is None and not SCALES[scale.value].drqn_episodes:
             ckpt = shipped_checkpoint("drqn_static_random")
         try:

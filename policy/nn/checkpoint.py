@@ -26,6 +26,9 @@ from .config import ModelConfig
 from .models import build_model
 
 FORMAT = "uavsearch-checkpoint/1"
+#: torch.save writes a zip archive; files from torch < 1.6 are a bare pickle (protocol marker)
+_ZIP_MAGIC = b"PK\x03\x04"
+_PICKLE_PROTO = b"\x80"
 log = logging.getLogger(__name__)
 
 
@@ -79,10 +82,24 @@ def read_torch_document(path: str | Path, fmt: str, required: tuple[str, ...]) -
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
     try:
+        with path.open("rb") as f:
+            head = f.read(len(_ZIP_MAGIC))
+    except OSError as e:
+        raise CheckpointError(f"{path}: cannot be read ({e.strerror})") from e
+    if not head:
+        raise CheckpointError(f"{path}: is empty, not a checkpoint")
+    if head != _ZIP_MAGIC and head[:1] != _PICKLE_PROTO:
+        raise CheckpointError(f"{path}: is not a torch checkpoint (it starts with {head!r}, "
+                              f"not a torch.save zip archive)")
+    try:
         with torch.serialization.safe_globals(_safe_globals()):
             doc = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError) as e:
-        raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") from e
+    except (RuntimeError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, OSError, IndexError,
+            KeyError, TypeError, AttributeError, UnicodeDecodeError, MemoryError) as e:
+        # torch's readers fail on foreign bytes in many ways (an IndexError from the legacy
+        # reader on text); its messages run to paragraphs: keep the first line
+        first = str(e).strip().splitlines()[0][:160] if str(e).strip() else ""
+        raise CheckpointError(f"{path}: not a readable checkpoint ({type(e).__name__}: {first})") from e
     if not isinstance(doc, dict) or doc.get("format") != fmt:
         found = doc.get("format") if isinstance(doc, dict) else None
         raise CheckpointError(f"{path}: not a uavsearch checkpoint of format {fmt!r} (found {found!r})")

@@ -19,11 +19,12 @@ package data at sim/gridworld/data/detection.json; until it is, levels > 1 need 
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from provenance import InputFileError, read_json
 
 from .config import ConfigError
 
@@ -128,9 +129,9 @@ class DetectionTable:
         if not path.is_file():
             raise ConfigError(f"no detection table at {path}")
         try:
-            d = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise ConfigError(f"cannot read the detection table {path}: {e}") from e
+            d = read_json(path, "detection table")
+        except InputFileError as e:
+            raise ConfigError(str(e)) from None
         return cls.from_dict(d, source=str(path))
 
     @classmethod

@@ -6,6 +6,7 @@ a journal that is missing, corrupt or another search's is refused naming the fil
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -87,17 +88,32 @@ def test_a_flights_journal_reloads_exactly(tmp_path: Path) -> None:
     """A real search over MAVLink (our SITL, 6 x 6, belief planner) journaled at every decision;
     the journal of move 4 loaded into a fresh service (another link, no vehicle) saves again to
     the same state, and the restored policy takes every later action the flight took."""
+    _journal_reloads_exactly(tmp_path, GridConfig(width=6, height=6, n_targets=3), 4, FLIGHT_PORT, IDLE_PORT)
+
+
+def test_a_journal_with_altitude_levels_reloads_the_level_it_flies(tmp_path: Path) -> None:
+    """The same with altitude levels (10 x 10 / 3, L = 3: the soft-evidence belief): the journal
+    holds the level of the next move, so a resumed search rejoins at its height."""
+    fresh, log = _journal_reloads_exactly(tmp_path, GridConfig(width=10, height=10, n_targets=3, levels=3), 1,
+                                          27100, 27110)
+    assert fresh.height.level == log.levels_flown[4] == 2, (fresh.height.level, log.levels_flown)
+
+
+def _journal_reloads_exactly(tmp_path: Path, grid: GridConfig, seed: int, flight_port: int,
+                             idle_port: int) -> tuple[PolicyService, object]:
+    """Fly, journal every decision, reload move 4's journal into a fresh service and check it
+    saves the same state and decides the same; returns (the fresh service, the flight's log)."""
     from missions.flight import _truth_sitl
     from sim.mavlink import SitlConfig
 
-    grid = GridConfig(width=6, height=6, n_targets=3)
-    cfg = SitlConfig(speedup=12.0, camera=True, grid=grid, episode_seed=4, seed=4, companion_lockstep=True,
-                     api_local_port=FLIGHT_PORT, api_remote_port=FLIGHT_PORT + 1, gcs_link=False, bind="127.0.0.1")
+    cfg = SitlConfig(speedup=12.0, camera=True, grid=dataclasses.replace(grid, levels=1, detection=None),
+                     episode_seed=seed, seed=seed, companion_lockstep=True,
+                     api_local_port=flight_port, api_remote_port=flight_port + 1, gcs_link=False, bind="127.0.0.1")
     sitl = _truth_sitl(cfg).start()
-    link = VehicleLink(f"udpin:127.0.0.1:{FLIGHT_PORT + 1}")
+    link = VehicleLink(f"udpin:127.0.0.1:{flight_port + 1}")
     spec = SearchSpec(origin=sitl.field_origin, grid=grid, max_moves=8, field_edge=True)
     try:
-        svc = PolicyService(link, Recording(flight_policy("belief", None, grid, 4)), spec, seed=4)
+        svc = PolicyService(link, Recording(flight_policy("belief", None, grid, seed)), spec, seed=seed)
         journal = Journal(tmp_path / "run", svc, {"test": True})
 
         def keep(move: int, cell: np.ndarray, t_k: float) -> None:
@@ -117,9 +133,9 @@ def test_a_flights_journal_reloads_exactly(tmp_path: Path) -> None:
     doc = read(tmp_path / f"at-{k}")
     assert doc.loop.move == k and doc.loop.cell == tuple(log.cells[k]) and doc.status == "searching"
     assert doc.meta["provenance"]["git_revision"] and doc.meta["provenance"]["config"] == {"test": True}
-    idle = VehicleLink(f"udpin:127.0.0.1:{IDLE_PORT}")
+    idle = VehicleLink(f"udpin:127.0.0.1:{idle_port}")
     try:
-        fresh = PolicyService(idle, Recording(flight_policy("belief", None, grid, 4)), spec, seed=4)
+        fresh = PolicyService(idle, Recording(flight_policy("belief", None, grid, seed)), spec, seed=seed)
         loop = load(tmp_path / f"at-{k}", fresh)
         assert loop == LoopState(k, tuple(log.cells[k]), doc.loop.t_k)
         assert fresh.log.cells == log.cells[:k]
@@ -139,6 +155,7 @@ def test_a_flights_journal_reloads_exactly(tmp_path: Path) -> None:
             assert np.array_equal(fresh.policy.inner.act(obs), act)
     finally:
         idle.close()
+    return fresh, log
 
 
 def _journal(tmp: Path, grid: GridConfig, policy: str = "frontier", status: str = "searching") -> Path:

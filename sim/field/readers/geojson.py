@@ -13,6 +13,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from provenance import InputFileError, read_json
+
 from ..errors import FieldError
 from ..shapes import Area, Shapes
 from .common import no_holes_in_exclusion, pick_field, ring, vertex
@@ -29,23 +31,9 @@ ORDER = "lon, lat"
 def load_json(path: Path, what: str) -> Any:
     """The file's JSON, or one line saying why not."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise FieldError(path, "no such file") from None
-    except IsADirectoryError:
-        raise FieldError(path, "is a directory, not a field file") from None
-    except UnicodeDecodeError:
-        raise FieldError(path, f"is not text (a {what} file is JSON)") from None
-    except OSError as e:
-        raise FieldError(path, f"cannot be read ({e.strerror})") from None
-    if not text.strip():
-        raise FieldError(path, f"is empty (a {what} file is JSON)")
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as e:
-        raise FieldError(path, f"is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
-    except RecursionError:
-        raise FieldError(path, "is not valid JSON (nested too deeply)") from None
+        return read_json(path, f"{what} file")
+    except InputFileError as e:
+        raise FieldError(path, e.what) from None
 
 
 def read_geojson(path: Path) -> Shapes:
