@@ -52,6 +52,9 @@ class FieldSpec:
     #: the vehicle's launch pad in the field frame (north, east m), where a real autopilot's
     #: world sets it down: its HOME_POSITION is its GPS's fix there, not the pad
     launch_ne: tuple[float, float] | None = None
+    #: how many vehicles share this one field (`sitl --count N --one-field`: the same targets,
+    #: each vehicle its own start cell; `run --fleet` flies them together); None: a field of its own
+    team: int | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -68,6 +71,7 @@ class FieldSpec:
                 "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp},
                 "autopilot": self.autopilot, "camera": self.camera,
                 "launch_ne": None if self.launch_ne is None else list(self.launch_ne),
+                **({} if self.team is None else {"team": self.team}),
                 # altitude levels the companion flies (docs/altitude.md), with their detection
                 # table: only where there are levels, so files without them read as before
                 **({} if self.grid.levels == 1 else {"levels": self.grid.levels,
@@ -116,6 +120,9 @@ def read_field(path: Path) -> FieldSpec:
                              f"(got {camera!r})")
     if autopilot not in (None, *AUTOPILOTS):
         raise FieldFileError(f"field file {path}: autopilot must be one of {', '.join(AUTOPILOTS)} (got {autopilot!r})")
+    team = d.get("team")  # one field shared by several vehicles (sitl --one-field); older files: none
+    if team is not None and (isinstance(team, bool) or not isinstance(team, int) or team < 2):
+        raise FieldFileError(f"field file {path}: team must be the number of vehicles on the field, >= 2 (got {team!r})")
     dialect = d.get("dialect", "px4")  # field files written before dialects: PX4's
     if dialect not in DIALECTS:
         raise FieldFileError(f"field file {path}: dialect must be one of {', '.join(DIALECTS)} (got {dialect!r})")
@@ -130,4 +137,4 @@ def read_field(path: Path) -> FieldSpec:
             sdp = str(Path(path).parent / sdp)
     return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
                      video_uri=uri, video_sdp=sdp, autopilot=autopilot, camera=camera,
-                     launch_ne=launch)
+                     launch_ne=launch, team=team)

@@ -34,12 +34,19 @@ def check_camera_px(px: object) -> int:
 
 
 class FieldScene:
-    def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float) -> None:
+    def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float,
+                 spawn_cell: tuple[int, int] | None = None) -> None:
         """field_origin: cell (0, 0)'s centre; home becomes the spawn point, and the field's
-        cell (0, 0) lies at -spawn in local NED."""
+        cell (0, 0) lies at -spawn in local NED. spawn_cell: where the vehicle starts (x, y),
+        None: the episode's start cell (a fleet's other vehicles start elsewhere on one field)."""
         self.grid = grid
         self.target_step_s = target_step_s
         self.episode = sample_episodes(grid, 1, episode_seed)
+        if spawn_cell is not None:
+            x, y = (int(v) for v in spawn_cell)
+            if not (0 <= x < grid.width and 0 <= y < grid.height):
+                raise ValueError(f"spawn_cell {spawn_cell} is off the {grid.width} x {grid.height} field")
+            self.episode.agent[0] = (x, y)
         spawn_ne = cell_to_ned(self.episode.agent[0])
         self.field_origin = HomePosition(field_origin.lat_deg, field_origin.lon_deg, field_origin.alt_m)
         self.home = HomePosition(*self.field_origin.ned_to_geodetic(np.array([spawn_ne[0], spawn_ne[1], 0.0])))
