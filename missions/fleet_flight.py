@@ -31,7 +31,15 @@ import numpy as np
 from autopilot_bridge.fleet import FleetPlanner, GuardedFrames, SeparationCheck, TeamRound
 from autopilot_bridge.link import VehicleLink
 from autopilot_bridge.service import PolicyService, SearchSpec, save_log
-from missions.guarded import EXIT_FAILED, EXIT_OK, EXIT_SHORT, FlightEnd, Interrupted, guarded_search, signals_raise
+from missions.guarded import (
+    EXIT_FAILED,
+    EXIT_OK,
+    EXIT_SHORT,
+    FlightEnd,
+    Interrupted,
+    guarded_search,
+    signals_raise,
+)
 from provenance import atomic_write_json, stamp
 from sim.gridworld import GridConfig
 

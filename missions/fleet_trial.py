@@ -48,8 +48,8 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     (vehicle, round) whose link is cut once the team has decided that many rounds."""
     from autopilot_bridge.link import VehicleLink
     from autopilot_bridge.service import SearchSpec
-    from missions.flight import _free_udp_ports, truly_met
     from missions.fleet_flight import build_team, fly_fleet, save_fleet
+    from missions.flight import _free_udp_ports, truly_met
     from sim.gridworld import sample_episodes
     from sim.gridworld.geodesy import HomePosition
     from sim.gridworld.team import team_starts
