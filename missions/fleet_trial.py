@@ -86,6 +86,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
         team, services = build_team(links, specs, seed)
         fleet.start()
         min_sep = [float("inf")]
+        closest: list = []  # (simulated s, vehicle, vehicle, field NE + height of each) at the least
 
         def watch() -> None:  # the scorer's truth, never given to the companion
             while not stop.is_set():
@@ -95,10 +96,14 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                     track[i].append(s.vehicle_cell().copy())
                     p = s.model.state.position_ned
                     if -p[2] > 1.0:
-                        air.append(np.array([p[0] + s.spawn_ne[0], p[1] + s.spawn_ne[1]]))
+                        air.append((i, np.array([p[0] + s.spawn_ne[0], p[1] + s.spawn_ne[1], -p[2]])))
                 for a in range(len(air)):
                     for b in range(a + 1, len(air)):
-                        min_sep[0] = min(min_sep[0], float(np.hypot(*(air[a] - air[b]))))
+                        d = float(np.hypot(*(air[a][1][:2] - air[b][1][:2])))
+                        if d < min_sep[0]:
+                            min_sep[0] = d
+                            closest[:] = [round(fleet.t, 2), air[a][0], air[b][0],
+                                          np.round(air[a][1], 2).tolist(), np.round(air[b][1], 2).tolist()]
                 if proxy is not None and cut is not None and team.log.rounds >= cut[1] and not proxy_cut.is_set():
                     proxy.cut()
                     proxy_cut.set()
@@ -148,7 +153,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                    separation_refused=log.separation_refused,
                    min_separation_m=None if not np.isfinite(log.min_separation_m) else round(log.min_separation_m, 3),
                    min_true_separation_m=None if not np.isfinite(min_sep[0]) else round(min_sep[0], 3),
-                   min_setpoint_separation_m=None if not np.isfinite(log.min_setpoint_separation_m)
+                   closest_true=closest, min_setpoint_separation_m=None if not np.isfinite(log.min_setpoint_separation_m)
                    else round(log.min_setpoint_separation_m, 3),
                    duplicate_finds=log.duplicate_finds, lost={str(k): v[1] for k, v in log.lost.items()},
                    armed_after=armed_after, height_after_m=[round(h, 2) for h in heights],
