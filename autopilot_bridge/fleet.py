@@ -56,6 +56,13 @@ from sim.gridworld import DELTAS, GridConfig, cell_to_ned
 from .pilot import DECISION_DEADLINE_S
 from .service import HOLD, PolicyService
 
+#: vehicle k searches at the base altitude + k * this (3.5, 4.5, 5.5, ... m): a vehicle whose
+#: position estimate is a cell off (its lattice registration on the wrong hypothesis; seen on
+#: 20 x 20 seed 2: a vehicle 2 m from where it believed, over another's cell) still passes
+#: another 1 m or more above or below it. The camera's view is built for 3.5 m; higher, the
+#: detector and the view scale with the height flown (blobs_to_view), and the frame's cells
+#: beyond the 3 x 3 view are left out
+HEIGHT_STEP_M = 1.0
 #: setpoints (and vehicles) closer than this horizontally at the same height are refused
 MIN_SEPARATION_M = 2.0
 #: two heights within this are "the same height" for the separation check
@@ -382,9 +389,9 @@ class TeamRound:
             return
         a = self.planner.decide(np.stack([obs[i].views[0] for i in members]), np.stack([cells[i] for i in members]),
                                 np.stack([obs[i].valid[0] for i in members]), self._round)
-        lead = self.services[members[0]]
-        height = self._home_down(lead) - lead.spec.altitude_m  # the search height, field down
-        dest = {i: np.array([*cell_to_ned(cells[i] + DELTAS[int(a[j])]), height]) for j, i in enumerate(members)}
+        # each vehicle's search height (field down): its own (distinct heights: missions.fleet_flight)
+        height = {i: self._home_down(self.services[i]) - self.services[i].spec.altitude_m for i in members}
+        dest = {i: np.array([*cell_to_ned(cells[i] + DELTAS[int(a[j])]), height[i]]) for j, i in enumerate(members)}
         # the vehicles out of the team that are still in the air (landing where they were lost)
         outside = [p for j, s in enumerate(self.services) if j not in self.alive
                    for p in [self._position(s)] if p is not None and -p[2] - self._home_down(s) > AIRBORNE_M]
@@ -399,7 +406,7 @@ class TeamRound:
                 if not self.sep.allows(dest[i], others):  # held: its setpoint stays its cell's centre
                     self.log.separation_refused += 1
                     self._result[i] = HOLD
-                    dest[i] = np.array([*cell_to_ned(cells[i]), height])
+                    dest[i] = np.array([*cell_to_ned(cells[i]), height[i]])
                     changed = True
         for i in members:
             others = [dest[m] for m in members if m != i] + outside

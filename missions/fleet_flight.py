@@ -28,7 +28,13 @@ from typing import Any
 
 import numpy as np
 
-from autopilot_bridge.fleet import FleetPlanner, GuardedFrames, SeparationCheck, TeamRound
+from autopilot_bridge.fleet import (
+    HEIGHT_STEP_M,
+    FleetPlanner,
+    GuardedFrames,
+    SeparationCheck,
+    TeamRound,
+)
 from autopilot_bridge.link import VehicleLink
 from autopilot_bridge.service import PolicyService, SearchSpec, save_log
 from missions.guarded import (
@@ -185,8 +191,14 @@ def specs_from_fields(paths: Sequence[Path], altitude: float = 3.5, max_moves: i
     addresses = [f.connect for f in fields]
     if len(set(addresses)) != len(addresses):
         raise FieldFileError(f"two field files name one address ({addresses}): one link per vehicle")
-    specs = [SearchSpec(f.origin, f.grid, altitude, max_moves=max_moves, field_edge=f.edge, set_failsafe=set_failsafe)
-             for f in fields]
+    top = altitude + (len(fields) - 1) * HEIGHT_STEP_M
+    if top > 30.0:
+        raise FieldFileError(f"{len(fields)} vehicles from {altitude:g} m, {HEIGHT_STEP_M:g} m apart, reach {top:g} m "
+                             "above home: more than 30 m")
+    # vehicle i at altitude + i * HEIGHT_STEP_M (autopilot_bridge.fleet: one cell of position
+    # error must not put two vehicles in one place)
+    specs = [SearchSpec(f.origin, f.grid, altitude + i * HEIGHT_STEP_M, max_moves=max_moves, field_edge=f.edge,
+                        set_failsafe=set_failsafe) for i, f in enumerate(fields)]
     return specs, addresses, first.grid
 
 
@@ -203,7 +215,7 @@ def run_fleet(paths: Sequence[Path], out: Path, seed: int = 0, on_abort: str = "
         return 2
     out.mkdir(parents=True, exist_ok=True)
     config = {"fleet": [str(p) for p in paths], "connect": addresses, "grid": grid.to_dict(), "policy": "belief-team",
-              "altitude": altitude, "max_moves": max_moves, "on_abort": on_abort}
+              "altitude": altitude, "altitudes_m": [s.altitude_m for s in specs], "max_moves": max_moves, "on_abort": on_abort}
     links: list[VehicleLink] = []
     try:
         for i, a in enumerate(addresses):

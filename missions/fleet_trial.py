@@ -43,9 +43,11 @@ def grid_makespan(grid: GridConfig, seed: int, n: int) -> int:
 
 def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None, seed: int = 0,
                     speedup: float = 12.0, physics: str = "pybullet", cut: tuple[int, int] | None = None,
-                    move_timeout_s: float = 20.0, plot: bool = True, echo=lambda m: None) -> dict[str, Any]:
+                    move_timeout_s: float = 20.0, plot: bool = True, echo=lambda m: None,
+                    height_step_m: float | None = None) -> dict[str, Any]:
     """Fly one fleet trial; write OUT/report.json (and the companion's logs and plot). cut:
     (vehicle, round) whose link is cut once the team has decided that many rounds."""
+    from autopilot_bridge.fleet import SAME_HEIGHT_M
     from autopilot_bridge.link import VehicleLink
     from autopilot_bridge.service import SearchSpec
     from missions.fleet_flight import build_team, fly_fleet, save_fleet
@@ -57,6 +59,9 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     from sim.mavlink.faultproxy import FaultProxy
 
     grid = grid or GridConfig(width=8, height=8, n_targets=3)
+    from autopilot_bridge.fleet import HEIGHT_STEP_M
+
+    height_step_m = HEIGHT_STEP_M if height_step_m is None else height_step_m
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     starts = team_starts(sample_episodes(grid, 1, seed), vehicles)[0]
@@ -81,11 +86,12 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     stop = threading.Event()
     try:
         fleet = SitlFleet(cfgs)
-        specs = [SearchSpec(origin=fleet[i].field_origin, grid=grid, field_edge=cfgs[i].field_edge)
-                 for i in range(vehicles)]
+        specs = [SearchSpec(origin=fleet[i].field_origin, grid=grid, field_edge=cfgs[i].field_edge,
+                            altitude_m=3.5 + i * height_step_m) for i in range(vehicles)]
         team, services = build_team(links, specs, seed)
         fleet.start()
         min_sep = [float("inf")]
+        min_level = [float("inf")]  # the same, between vehicles within SAME_HEIGHT_M of one height
         closest: list = []  # (simulated s, vehicle, vehicle, field NE + height of each) at the least
 
         def watch() -> None:  # the scorer's truth, never given to the companion
@@ -100,6 +106,8 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                 for a in range(len(air)):
                     for b in range(a + 1, len(air)):
                         d = float(np.hypot(*(air[a][1][:2] - air[b][1][:2])))
+                        if abs(air[a][1][2] - air[b][1][2]) < SAME_HEIGHT_M:
+                            min_level[0] = min(min_level[0], d)
                         if d < min_sep[0]:
                             min_sep[0] = d
                             closest[:] = [round(fleet.t, 2), air[a][0], air[b][0],
@@ -143,6 +151,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     in_grid = grid_makespan(grid, seed, vehicles)
     log = end.team.log
     config = {"vehicles": vehicles, "grid": grid.to_dict(), "speedup": speedup, "physics": physics,
+              "altitudes_m": [3.5 + i * height_step_m for i in range(vehicles)],
               "cut": None if cut is None else list(cut), "starts": starts.tolist(), "policy": "belief-team"}
     # the flight's makespan: the rounds that moved the team (the last round saw the last find and
     # moved no one), as the team world's joint steps
@@ -153,6 +162,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                    separation_refused=log.separation_refused,
                    min_separation_m=None if not np.isfinite(log.min_separation_m) else round(log.min_separation_m, 3),
                    min_true_separation_m=None if not np.isfinite(min_sep[0]) else round(min_sep[0], 3),
+                   min_true_separation_same_height_m=None if not np.isfinite(min_level[0]) else round(min_level[0], 3),
                    closest_true=closest, min_setpoint_separation_m=None if not np.isfinite(log.min_setpoint_separation_m)
                    else round(log.min_setpoint_separation_m, 3),
                    duplicate_finds=log.duplicate_finds, lost={str(k): v[1] for k, v in log.lost.items()},

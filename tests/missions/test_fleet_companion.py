@@ -66,7 +66,7 @@ def test_a_vehicle_whose_link_is_cut_lands_and_the_others_finish(tmp_path: Path)
     assert list(r["lost"]) == ["1"], r["lost"]
     assert r["outcome"] == 0 and r["truly_found"] == 3, r
     assert r["armed_after"] == [False, False, False] and max(r["height_after_m"]) < 0.3, "all down, the cut one too"
-    assert r["separation_refused"] == 0 and r["min_true_separation_m"] >= 2.0, r
+    assert r["separation_refused"] == 0 and r["min_true_separation_same_height_m"] >= 2.0, r
 
 
 def test_sigterm_lands_every_vehicle(tmp_path: Path) -> None:
