@@ -44,9 +44,10 @@ def grid_makespan(grid: GridConfig, seed: int, n: int) -> int:
 def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None, seed: int = 0,
                     speedup: float = 12.0, physics: str = "pybullet", cut: tuple[int, int] | None = None,
                     move_timeout_s: float = 20.0, plot: bool = True, echo=lambda m: None,
-                    height_step_m: float | None = None) -> dict[str, Any]:
+                    height_step_m: float | None = None, kill: tuple[int, int] | None = None) -> dict[str, Any]:
     """Fly one fleet trial; write OUT/report.json (and the companion's logs and plot). cut:
-    (vehicle, round) whose link is cut once the team has decided that many rounds."""
+    (vehicle, round) whose link is cut once the team has decided that many rounds; kill:
+    (vehicle, round) force-disarmed then by a ground station on its GCS link (it falls)."""
     from autopilot_bridge.fleet import SAME_HEIGHT_M
     from autopilot_bridge.link import VehicleLink
     from autopilot_bridge.service import SearchSpec
@@ -112,13 +113,17 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                             min_sep[0] = d
                             closest[:] = [round(fleet.t, 2), air[a][0], air[b][0],
                                           np.round(air[a][1], 2).tolist(), np.round(air[b][1], 2).tolist()]
+                if kill is not None and team.log.rounds >= kill[1] and not killed.is_set():
+                    killed.set()
+                    threading.Thread(target=_force_disarm, args=(cfgs[kill[0]],), daemon=True).start()
+                    echo(f"vehicle {kill[0]} force-disarmed at round {team.log.rounds}")
                 if proxy is not None and cut is not None and team.log.rounds >= cut[1] and not proxy_cut.is_set():
                     proxy.cut()
                     proxy_cut.set()
                     echo(f"link of vehicle {cut[0]} cut at round {team.log.rounds}")
                 time.sleep(0.02)
 
-        proxy_cut = threading.Event()
+        proxy_cut, killed = threading.Event(), threading.Event()
         watcher = threading.Thread(target=watch, daemon=True)
         watcher.start()
         t0 = time.monotonic()
@@ -150,7 +155,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
         truly |= np.array(truly_met(tr[:, i], herd), bool)
     in_grid = grid_makespan(grid, seed, vehicles)
     log = end.team.log
-    config = {"vehicles": vehicles, "grid": grid.to_dict(), "speedup": speedup, "physics": physics,
+    config = {"kill": None if kill is None else list(kill), "vehicles": vehicles, "grid": grid.to_dict(), "speedup": speedup, "physics": physics,
               "altitudes_m": [3.5 + i * height_step_m for i in range(vehicles)],
               "cut": None if cut is None else list(cut), "starts": starts.tolist(), "policy": "belief-team"}
     # the flight's makespan: the rounds that moved the team (the last round saw the last find and
@@ -178,3 +183,20 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                    f"{vehicles} vehicles, seed {seed}: {log.rounds} rounds (grid {in_grid}), "
                    f"{int(truly.sum())}/{grid.n_targets} truly found", [tr[:, i] for i in range(vehicles)], targets)
     return report
+
+
+def _force_disarm(cfg) -> None:
+    """A ground station on the vehicle's GCS link kills it: ARM_DISARM with the force magic."""
+    from pymavlink import mavutil
+
+    m = mavutil.mavlink
+    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{cfg.gcs_ports[1]}", source_system=255, source_component=190)
+    try:
+        if gcs.wait_heartbeat(timeout=5) is None:
+            return
+        for _ in range(3):
+            gcs.mav.command_long_send(cfg.sysid, 1, m.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196, 0, 0, 0, 0, 0)
+            if gcs.recv_match(type="COMMAND_ACK", blocking=True, timeout=1.0) is not None:
+                return
+    finally:
+        gcs.close()

@@ -58,12 +58,16 @@ def test_a_fleet_of_three_finds_every_target_with_no_separation_refused(tmp_path
     assert all((tmp_path / "run" / f"vehicle-{i}" / "search_log.json").exists() for i in range(3))
 
 
-def test_a_vehicle_whose_link_is_cut_lands_and_the_others_finish(tmp_path: Path) -> None:
-    """Its link goes silent at round 2 (a cut FaultProxy: real UDP, nothing gets through): the
-    companion loses it, its own offboard-loss failsafe lands it, the other two find all 3."""
-    r = fly_fleet_trial(tmp_path, 3, GridConfig(width=8, height=8, n_targets=3), seed=0, speedup=12, cut=(1, 2),
-                        plot=False)
+@pytest.mark.parametrize("how", ["cut", "kill"])
+def test_a_vehicle_lost_mid_search_is_down_and_the_others_finish(tmp_path: Path, how: str) -> None:
+    """cut: its link goes silent at round 2 (a cut FaultProxy: real UDP, nothing gets through):
+    the companion loses it and its own offboard-loss failsafe lands it. kill: a ground station
+    force-disarms it at round 2 (it falls): the companion sees it disarmed and takes it out.
+    Either way the other two find all 3."""
+    r = fly_fleet_trial(tmp_path, 3, GridConfig(width=8, height=8, n_targets=3), seed=0, speedup=12, plot=False,
+                        **{how: (1, 2)})
     assert list(r["lost"]) == ["1"], r["lost"]
+    assert how == "cut" or "disarmed" in r["lost"]["1"], r["lost"]  # cut: silence or the link error, whichever first
     assert r["outcome"] == 0 and r["truly_found"] == 3, r
     assert r["armed_after"] == [False, False, False] and max(r["height_after_m"]) < 0.3, "all down, the cut one too"
     assert r["separation_refused"] == 0 and r["min_true_separation_same_height_m"] >= 2.0, r
