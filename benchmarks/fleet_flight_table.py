@@ -46,7 +46,8 @@ def main() -> None:
         r = fly_fleet_trial(a.out / f"seed-{s}", a.vehicles, grid, s, a.speedup, a.physics)
         rows.append({k: r[k] for k in ("seed", "outcome", "moves", "grid_makespan", "flight_grid_ratio",
                                        "truly_found", "believed_found", "separation_refused", "min_true_separation_m",
-                                       "min_true_separation_same_height_m", "closest_true",
+                                       "min_true_separation_same_height_m", "min_true_distance_3d_m",
+                                       "closest_true",
                                        "min_separation_m", "duplicate_finds", "lost", "schedule_slips", "late_frames",
                                        "simulated_s", "wall_s")})
         print(f"seed {s}: {r['moves']} moves (grid {r['grid_makespan']}), {r['truly_found']}/{a.targets} truly found, "
@@ -56,6 +57,7 @@ def main() -> None:
                "separation_refused": int(sum(r["separation_refused"] for r in rows)),
                "min_true_separation_m": min(r["min_true_separation_m"] for r in rows),
                "min_true_separation_same_height_m": min(r["min_true_separation_same_height_m"] for r in rows),
+               "min_true_distance_3d_m": min(r["min_true_distance_3d_m"] for r in rows),
                "flight_grid_mean": float(ratio.mean()), "flight_grid_max": float(ratio.max()),
                "moves_mean": float(np.mean([r["moves"] for r in rows])),
                "grid_mean": float(np.mean([r["grid_makespan"] for r in rows])), "wall_s": time.monotonic() - t0}
@@ -71,16 +73,17 @@ def main() -> None:
              f"Command: `PYTHONPATH=. .venv/bin/python {config['command']}` (git {doc['git_revision']}).", "",
              f"- truly found: {summary['truly_found_pct']:.1f} %; separation refused: {summary['separation_refused']}; "
              f"least true horizontal distance between airborne vehicles: {summary['min_true_separation_m']} m, "
-             f"between two within 1 m of one height: {summary['min_true_separation_same_height_m']} m",
+             f"between two within 1 m of one height: {summary['min_true_separation_same_height_m']} m; least "
+             f"distance in space: {summary['min_true_distance_3d_m']} m",
              f"- makespan flight/grid: mean {summary['flight_grid_mean']:.3f}, max {summary['flight_grid_max']:.3f} "
              f"({summary['moves_mean']:.1f} rounds flown against {summary['grid_mean']:.1f} joint steps)", "",
              "| seed | moves | grid | flight/grid | truly found | refused | least true sep. (m) | at one height (m) "
-             "| slips | wall s |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| in space (m) | slips | wall s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['seed']} | {r['moves']} | {r['grid_makespan']} | {r['flight_grid_ratio']:.2f} | "
                      f"{r['truly_found']}/{a.targets} | {r['separation_refused']} | {r['min_true_separation_m']} | "
-                     f"{r['min_true_separation_same_height_m']} | "
+                     f"{r['min_true_separation_same_height_m']} | {r['min_true_distance_3d_m']} | "
                      f"{sum(r['schedule_slips'])} | {r['wall_s']:.0f} |")
     with atomic_open(a.out / "fleet_flights.md", "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -92,7 +92,8 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
         team, services = build_team(links, specs, seed)
         fleet.start()
         min_sep = [float("inf")]
-        min_level = [float("inf")]  # the same, between vehicles within SAME_HEIGHT_M of one height
+        min_level = [float("inf")]
+        min_3d = [float("inf")]  # the least distance in space between two airborne vehicles  # the same, between vehicles within SAME_HEIGHT_M of one height
         closest: list = []  # (simulated s, vehicle, vehicle, field NE + height of each) at the least
 
         def watch() -> None:  # the scorer's truth, never given to the companion
@@ -107,6 +108,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                 for a in range(len(air)):
                     for b in range(a + 1, len(air)):
                         d = float(np.hypot(*(air[a][1][:2] - air[b][1][:2])))
+                        min_3d[0] = min(min_3d[0], float(np.linalg.norm(air[a][1] - air[b][1])))
                         if abs(air[a][1][2] - air[b][1][2]) < SAME_HEIGHT_M:
                             min_level[0] = min(min_level[0], d)
                         if d < min_sep[0]:
@@ -168,6 +170,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
                    min_separation_m=None if not np.isfinite(log.min_separation_m) else round(log.min_separation_m, 3),
                    min_true_separation_m=None if not np.isfinite(min_sep[0]) else round(min_sep[0], 3),
                    min_true_separation_same_height_m=None if not np.isfinite(min_level[0]) else round(min_level[0], 3),
+                   min_true_distance_3d_m=None if not np.isfinite(min_3d[0]) else round(min_3d[0], 3),
                    closest_true=closest, min_setpoint_separation_m=None if not np.isfinite(log.min_setpoint_separation_m)
                    else round(log.min_setpoint_separation_m, 3),
                    duplicate_finds=log.duplicate_finds, lost={str(k): v[1] for k, v in log.lost.items()},
