@@ -101,6 +101,12 @@ def fly_fleet(team: TeamRound, services: Sequence[PolicyService], on_abort: str 
     """Fly every vehicle's search at once and bring every one down, whatever happens."""
     n = len(services)
     ends: list[FlightEnd | None] = [None] * n
+    said = threading.Lock()  # one line at a time from the vehicles' threads
+    shown = echo
+
+    def echo(m: str) -> None:
+        with said:
+            shown(m)
 
     def fly(i: int) -> None:
         say = lambda m: echo(f"vehicle {i}: {m}")  # noqa: E731
