@@ -55,6 +55,9 @@ class FieldSpec:
     #: the real field the SITL renders (`sitl --field`): the path of its field.json (`uavsearch
     #: field`), whose grid, heading, mask and fence `run --field` flies; None: the rectangle
     polygon: str | None = None
+    #: how many vehicles share this one field (`sitl --count N --one-field`: the same targets,
+    #: each vehicle its own start cell; `run --fleet` flies them together); None: a field of its own
+    team: int | None = None
 
     def __post_init__(self) -> None:
         if self.dialect not in DIALECTS:
@@ -71,6 +74,7 @@ class FieldSpec:
                 "video": None if self.video_uri is None else {"uri": self.video_uri, "sdp": self.video_sdp},
                 "autopilot": self.autopilot, "camera": self.camera,
                 "launch_ne": None if self.launch_ne is None else list(self.launch_ne),
+                **({} if self.team is None else {"team": self.team}),
                 # altitude levels the companion flies (docs/altitude.md), with their detection
                 # table: only where there are levels, so files without them read as before
                 **({} if self.grid.levels == 1 else {"levels": self.grid.levels,
@@ -120,6 +124,9 @@ def read_field(path: Path) -> FieldSpec:
                              f"(got {camera!r})")
     if autopilot not in (None, *AUTOPILOTS):
         raise FieldFileError(f"field file {path}: autopilot must be one of {', '.join(AUTOPILOTS)} (got {autopilot!r})")
+    team = d.get("team")  # one field shared by several vehicles (sitl --one-field); older files: none
+    if team is not None and (isinstance(team, bool) or not isinstance(team, int) or team < 2):
+        raise FieldFileError(f"field file {path}: team must be the number of vehicles on the field, >= 2 (got {team!r})")
     dialect = d.get("dialect", "px4")  # field files written before dialects: PX4's
     if dialect not in DIALECTS:
         raise FieldFileError(f"field file {path}: dialect must be one of {', '.join(DIALECTS)} (got {dialect!r})")
@@ -140,4 +147,4 @@ def read_field(path: Path) -> FieldSpec:
             polygon = str(Path(path).parent / polygon)
     return FieldSpec(origin, grid, cell_m, d.get("connect"), d.get("instance"), d.get("physics"), edge, dialect=dialect,
                      video_uri=uri, video_sdp=sdp, autopilot=autopilot, camera=camera,
-                     launch_ne=launch, polygon=polygon)
+                     launch_ne=launch, polygon=polygon, team=team)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from provenance import atomic_open, atomic_write_json, stamp
+from provenance import atomic_write_json, stamp
 from sim.gridworld import GridConfig
 
 
@@ -40,12 +40,9 @@ def _plot(out: Path, grid: GridConfig, targets: np.ndarray, cells: list, track: 
     ax.plot(c[0, 0], c[0, 1], "^", color="tab:orange", ms=10, label="start")
     ax.plot(c[-1, 0], c[-1, 1], "s", color="tab:green", ms=10, label="end")
     ax.plot(targets[:, 0], targets[:, 1], "X", color="tab:red", ms=12, label="targets (truth)")
-    ax.set_title(title, fontsize=10)
-    ax.legend(loc="upper right", fontsize=7)
-    fig.tight_layout()
-    with atomic_open(out, "wb") as f:
-        fig.savefig(f, format="png", dpi=110)
-    plt.close(fig)
+    from missions.run_plot import save_figure
+
+    save_figure(fig, ax, out, title, fontsize=10)
 
 
 @contextmanager

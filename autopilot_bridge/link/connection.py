@@ -190,11 +190,13 @@ class VehicleLink:
         self._handlers: list = []
         self._last_received = time.monotonic()  # nothing yet: counted from the link's opening
         self._stop = threading.Event()
-        self._rx = threading.Thread(target=self._receive, name="mavlink-rx", daemon=True)
-        self._rx.start()
         self.heartbeats_silenced = False
         #: (this computer's monotonic s, the vehicle's boot s) of recent telemetry, for its clock rate
+        #: (before the receive thread starts: a vehicle already streaming when the link opens, as a
+        #: fleet's, raised AttributeError in its first messages' handler)
         self._boot_clock: deque[tuple[float, float]] = deque(maxlen=64)
+        self._rx = threading.Thread(target=self._receive, name="mavlink-rx", daemon=True)
+        self._rx.start()
         self._hb_period = 1.0 / heartbeat_hz if heartbeat_hz > 0 else 0.0
         self._hb = threading.Thread(target=self._heartbeats, name="mavlink-hb", daemon=True)
         if self._hb_period:

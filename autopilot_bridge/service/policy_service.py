@@ -59,6 +59,9 @@ from .search_data import Progress, SearchLog, SearchSpec, save_log
 __all__ = ["PolicyService", "Progress", "SearchLog", "SearchSpec", "save_log"]
 
 KEEP_FRAMES = 7
+#: a policy's action meaning "hold this cell" (a fleet's vehicle whose move the separation
+#: check refused, autopilot_bridge.service.fleet): the vehicle stays, as a wall bump under off_map "stay"
+HOLD = -1
 #: a target in the believed cell but off the nadir by more than found.FOUND_M is
 #: re-centred on first, at most RECENTRE times a move
 RECENTRE = 2
@@ -289,8 +292,10 @@ class PolicyService:
                 )
             self.pilot.expect(DECISION_DEADLINE_S)
             a = int(self.policy.act(obs)[0])
-            stay = False
-            if not obs.valid[0, a]:
+            if getattr(self.policy, "finished", False):
+                break  # a fleet's search ended with this round (autopilot_bridge.service.fleet: the team found all)
+            stay = a == HOLD
+            if not stay and not obs.valid[0, a]:
                 if getattr(self.policy, "off_map", "random") == "stay":
                     stay = True  # a wall bump leaves it in place, as in the world it learned in (DRQN)
                 else:  # off the map: a random valid move instead (Section V-A)

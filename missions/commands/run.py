@@ -89,8 +89,21 @@ def register(app: typer.Typer) -> None:
             None, "--levels", min=1, max=3, help="Altitude levels to fly: climb and descend are moves, level l at "
             "3.5 m (2 l + 1) / 3 over home (docs/altitude.md) (default: the field file's, else 1)."),
         detection: Path | None = _levels.DETECTION,
+        fleet: bool = typer.Option(
+            False, "--fleet", help="Fly several vehicles on one field with one companion, one shared belief and the "
+            "team planner: give the field files `uavsearch sitl --count N --one-field` wrote (docs/fleet_flight.md)."),
+        fleet_fields: list[Path] | None = typer.Argument(None, help="With --fleet: one field file per vehicle."),
     ) -> None:
         """Connect, arm, take off, search the field cell by cell, land; write the search log."""
+        if fleet or fleet_fields:
+            _check(fleet and bool(fleet_fields), fleet_fields, "--fleet", "give --fleet and the vehicles' field files")
+            from missions.fleet_flight import run_fleet
+
+            raise typer.Exit(run_fleet(fleet_fields, out, 0 if seed is None else seed,
+                                       on_abort="land" if on_abort == AbortAction.rtl else on_abort.value,
+                                       altitude=3.5 if altitude is None else altitude, max_moves=max_moves,
+                                       move_timeout_s=move_timeout, abort_timeout_s=abort_timeout, tlog=tlog,
+                                       echo=typer.echo))
         from autopilot_bridge.link.connection import VehicleLink
         from autopilot_bridge.link.dialects import NAMES as AUTOPILOTS
         from autopilot_bridge.service.journal import (

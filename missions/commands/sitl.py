@@ -37,6 +37,10 @@ def register(app: typer.Typer) -> None:
             1, "--count", min=1, max=40,
             help="Vehicles to run, instances N, N+1, ... (N + count <= 40, PX4's port plan). Two or more share "
                  "one process, one physics step and one vectorised controller."),
+        one_field: bool = typer.Option(
+            False, "--one-field/--own-fields",
+            help="With --count N: every vehicle on one field (the same targets), each on its own start cell, for "
+                 "`uavsearch run --fleet` (docs/fleet_flight.md); default: each vehicle its own field (seed + N)."),
         speedup: float = typer.Option(1.0, "--speedup", min=0.0, help="Lock-step speed-up; 0 = as fast as possible."),
         physics: Physics = typer.Option(Physics.pybullet, "--physics"),
         dialect: Dialect = typer.Option(
@@ -179,6 +183,9 @@ def register(app: typer.Typer) -> None:
         if vport and not 1 <= vport <= 65534 - 2 * count:
             raise typer.BadParameter(f"{vport}: must be a UDP port 1..{65534 - 2 * count}", param_hint="--video-port")
         cfgs = []
+        starts = None
+        if one_field and count > 1:
+            starts = _team_starts(grid, seed, count)
         for n in range(instance, instance + count):
             try:
                 probe = SitlConfig(instance=n, gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
@@ -198,7 +205,8 @@ def register(app: typer.Typer) -> None:
             cfg = SitlConfig(instance=n, speedup=speedup, physics=physics.value, home=origin, grid=grid, camera=True,
                              camera_px=camera_px,
                              target_step_s=target_step_s, field_edge=field_edge,
-                             episode_seed=seed + n, seed=seed + n, signing_key=key, tlog=path,
+                             episode_seed=seed + n if starts is None else seed, seed=seed + n, signing_key=key,
+                             tlog=path, spawn_cell=None if starts is None else starts[n - instance],
                              geofence=Geofence(fence_radius, fence_alt),
                              gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind,
                              dialect=dialect.value, ekf_delay_s=ekf_delay_s, video=video,
@@ -223,7 +231,8 @@ def register(app: typer.Typer) -> None:
                            f"port {video.port}")
             write_field(fpath, FieldSpec(origin, search_grid, cell_m, f"udpin:0.0.0.0:{api}", n, physics.value, field_edge,
                                          dialect=dialect.value, autopilot="ours", video_uri=uri, video_sdp=sdp_name,
-                                         polygon=None if pf is None else str(polygon_field.resolve())),
+                                         polygon=None if pf is None else str(polygon_field.resolve()),
+                                         team=None if starts is None else count),
                         seed + n, sitl=cfg.to_dict())
             typer.echo(f"    field               {width} x {height} cells of {cell_m:g} m, {targets} targets "
                        f"({distribution.value}, {motion.value}); cell (0, 0) at {lat:.7f}, {lon:.7f}, {alt:g} m")
@@ -299,6 +308,20 @@ def _polygon(path: Path, real_autopilot: bool, count: int):
     if int(largest_component(np.asarray(pf.mask, bool)).sum()) < 2:
         raise typer.BadParameter(f"{path}: fewer than 2 searchable cells", param_hint="--field")
     return pf
+
+
+def _team_starts(grid, seed: int, count: int) -> list[tuple[int, int]]:
+    """The start cells of `count` vehicles on one field: the team grid world's (the episode's
+    start cell, then cells free of targets and of the others, sim.gridworld.team.team_starts),
+    so the fleet flight starts where the team world of the same seed does."""
+    from sim.gridworld import ConfigError, sample_episodes
+    from sim.gridworld.team import team_starts
+
+    try:
+        s = team_starts(sample_episodes(grid, 1, seed), count)[0]
+    except ConfigError as e:
+        raise typer.BadParameter(str(e), param_hint="--count") from e
+    return [(int(x), int(y)) for x, y in s]
 
 
 def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: int, speedup: float,

@@ -89,7 +89,7 @@ def read_torch_document(path: str | Path, fmt: str, required: tuple[str, ...]) -
     if not head:
         raise CheckpointError(f"{path}: is empty, not a checkpoint")
     if head != _ZIP_MAGIC and head[:1] != _PICKLE_PROTO:
-        raise CheckpointError(f"{path}: is not a torch checkpoint (it starts with {head!r}, "
+        raise CheckpointError(f"{path}: not a readable checkpoint (it starts with {head!r}, "
                               f"not a torch.save zip archive)")
     try:
         with torch.serialization.safe_globals(_safe_globals()):

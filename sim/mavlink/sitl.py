@@ -98,6 +98,10 @@ class SitlConfig:
     api_remote_port: int | None = None
     gcs_local_port: int | None = None
     gcs_remote_port: int | None = None
+    #: the cell (x, y) the vehicle stands on at start; None: the episode's start cell (one
+    #: vehicle's field). A fleet on one field (`sitl --count N --one-field`) gives each vehicle
+    #: the same episode and its own start cell (sim.gridworld.team.team_starts)
+    spawn_cell: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         if not 0 <= self.instance < 40:
@@ -171,7 +175,8 @@ class Sitl(BackgroundRunner):
         self.cfg = cfg
         # the field: episode, home at the spawn point (the field's cell (0, 0) lies at -spawn in
         # local NED), rendered paddock and camera; shared with the worlds real autopilots fly
-        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s, polygon=cfg.polygon)
+        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s, polygon=cfg.polygon,
+                                spawn_cell=cfg.spawn_cell)
         self.episode = self.scene.episode
         self.home = self.scene.home
         self.field_origin = self.scene.field_origin

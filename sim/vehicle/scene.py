@@ -35,13 +35,14 @@ def check_camera_px(px: object) -> int:
 
 class FieldScene:
     def __init__(self, grid: GridConfig, field_origin: HomePosition, episode_seed: int, target_step_s: float,
-                 polygon=None) -> None:
+                 polygon=None, spawn_cell: tuple[int, int] | None = None) -> None:
         """field_origin: cell (0, 0)'s centre; home becomes the spawn point, and the field's
         cell (0, 0) lies at -spawn in local NED. polygon: a real field (`sim.field.PolygonField`,
         its grid the same as `grid`'s and its origin field_origin): the grid at its heading, the
         spawn cell and the targets on its searchable cells (the largest 4-connected part, which
         a vehicle never crossing a no-fly zone can reach), the ground rendered as its polygon;
-        None, today's north-aligned rectangle."""
+        None, today's north-aligned rectangle. spawn_cell: where the vehicle starts (x, y), None:
+        the episode's start cell (a fleet's other vehicles start elsewhere on one field)."""
         self.grid = grid
         self.target_step_s = target_step_s
         self.polygon = polygon
@@ -49,7 +50,6 @@ class FieldScene:
         self.frame = GridFrame(0.0 if polygon is None else float(polygon.heading_deg))
         if polygon is None:
             self.episode = sample_episodes(grid, 1, episode_seed)
-            spawn_ne = cell_to_ned(self.episode.agent[0])
         else:
             from sim.gridworld.masks import largest_component
 
@@ -57,7 +57,14 @@ class FieldScene:
                 raise ValueError(f"the polygon field's grid ({polygon.width} x {polygon.height} of {polygon.cell_m} m) "
                                  f"is not the scene's ({grid.width} x {grid.height} of 2 m)")
             self.episode = sample_episodes(grid, 1, episode_seed, mask=largest_component(np.asarray(polygon.mask)))
-            spawn_ne = self.frame.cell_to_ned(self.episode.agent[0])
+        if spawn_cell is not None:
+            x, y = (int(v) for v in spawn_cell)
+            if not (0 <= x < grid.width and 0 <= y < grid.height):
+                raise ValueError(f"spawn_cell {spawn_cell} is off the {grid.width} x {grid.height} field")
+            if polygon is not None:
+                raise ValueError("a fleet's start cells on a real field are not flown yet (spawn_cell with polygon)")
+            self.episode.agent[0] = (x, y)
+        spawn_ne = cell_to_ned(self.episode.agent[0]) if polygon is None else self.frame.cell_to_ned(self.episode.agent[0])
         self.field_origin = HomePosition(field_origin.lat_deg, field_origin.lon_deg, field_origin.alt_m)
         self.home = HomePosition(*self.field_origin.ned_to_geodetic(np.array([spawn_ne[0], spawn_ne[1], 0.0])))
         self.spawn_ne = spawn_ne
