@@ -22,7 +22,7 @@ demo: $(STAMP)
 	$(BIN)/uavsearch demo
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
