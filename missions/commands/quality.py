@@ -36,6 +36,9 @@ def register(app: typer.Typer) -> None:
         masked_fields: int = typer.Option(2000, "--masked-fields", min=1, help="With --masked: fields per class."),
         masked_area: int = typer.Option(100, "--masked-area", min=6, help="With --masked: searchable cells per field."),
         mask_class: list[str] | None = typer.Option(None, "--mask-class", help="With --masked: classes (default all)."),
+        field: Path | None = typer.Option(
+            None, "--field", help="Instead: one real field's field.json (`uavsearch field`): oracle / belief / "
+            "lawnmower on --masked-fields episodes on it vs the rectangle of its area -> OUT/fields/quality_NAME.*"),
         agents: list[int] | None = typer.Option(
             None, "--agents", help="Instead: the fleet table (issue 29) for these team sizes (repeat: --agents 2 "
             "--agents 4) -> OUT/fleet_search.md + .json"),
@@ -52,6 +55,9 @@ def register(app: typer.Typer) -> None:
                        f"--seed {seed} --workers {workers}")
             for p in write_fleet_quality(doc, out, command):
                 typer.echo(str(p))
+            return
+        if field is not None:
+            _field_quality(field, masked_fields, seed, workers, out)
             return
         if masked:
             from policy.evaluation.masked_quality import (
@@ -106,3 +112,29 @@ def register(app: typer.Typer) -> None:
                           refresh=tuple(refresh or ()))
         for p in write_quality(doc, out):
             typer.echo(str(p))
+
+
+def _field_quality(field: Path, episodes: int, seed: int, workers: int | None, out: Path) -> None:
+    """`quality --field`: the masked-fields section on one real field (its reachable mask)."""
+    from policy.evaluation.masked_quality import (
+        MaskedQualityConfig,
+        run_masked_quality,
+        write_masked_quality,
+    )
+    from sim.gridworld import GridConfig
+
+    from .eval import _field_grid
+
+    if out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+    _, mask = _field_grid(field, GridConfig())
+    name = field.resolve().parent.name if field.name == "field.json" else field.stem
+    try:
+        mq = MaskedQualityConfig(fields=episodes, area=int(mask.sum()), seed=seed, field_name=name,
+                                 field_mask=tuple(tuple(bool(v) for v in row) for row in mask))
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--field") from e
+    doc = run_masked_quality(mq, workers=workers)
+    doc["command"] = f"uavsearch quality --field {field} --masked-fields {episodes} --seed {seed} --workers {workers}"
+    for p in write_masked_quality(doc, out / "fields", stem=f"quality_{name}"):
+        typer.echo(str(p))

@@ -40,6 +40,11 @@ class MaskedQualityConfig:
     #: "aligned": the field laid along the grid (how `uavsearch field` lays it by default);
     #: "rotated": at a random angle to the grid (staircase edges)
     orientations: tuple[str, ...] = ORIENTATIONS
+    #: instead of the random classes: one real field (`uavsearch quality --field`): its name and
+    #: its mask (rows of searchable cells, the part the drone can reach), every episode on it;
+    #: `area` is then its searchable cells
+    field_name: str | None = None
+    field_mask: tuple[tuple[bool, ...], ...] | None = None
 
     def __post_init__(self) -> None:
         if self.fields < 1:
@@ -52,6 +57,11 @@ class MaskedQualityConfig:
         bad = [o for o in self.orientations if o not in ORIENTATIONS]
         if bad:
             raise ValueError(f"unknown orientation(s) {bad}; known: {', '.join(ORIENTATIONS)}")
+        if (self.field_name is None) != (self.field_mask is None):
+            raise ValueError("a real field needs its name and its mask")
+        if self.field_mask is not None and int(np.asarray(self.field_mask, bool).sum()) != self.area:
+            raise ValueError(f"area must be the field's searchable cells ({int(np.asarray(self.field_mask).sum())}, "
+                             f"got {self.area})")
         if "oracle" not in self.policies:
             raise ValueError("the masked-fields section needs the oracle row (ratios are to it)")
 
@@ -76,6 +86,10 @@ def masked_task(label: str, qc_dict: dict[str, Any]) -> dict[str, Any]:
     if label == RECTANGLE:
         w, h = qc.rectangle
         mask = None
+    elif qc.field_mask is not None:  # one real field: every episode on its mask
+        one = np.asarray(qc.field_mask, bool)
+        mask = np.repeat(one[None], qc.fields, axis=0)
+        h, w = one.shape
     else:
         kind, orientation = label.split(", ")
         mask = random_masks(kind, qc.area, qc.fields, qc.seed, rotated=orientation == "rotated")
@@ -102,7 +116,8 @@ def run_masked_quality(qc: MaskedQualityConfig, workers: int | None = 1) -> dict
     from ..fanout import fan_out
 
     t0 = time.perf_counter()
-    labels = [RECTANGLE, *(f"{k}, {o}" for o in qc.orientations for k in qc.classes)]
+    labels = [RECTANGLE, *(f"{k}, {o}" for o in qc.orientations for k in qc.classes)] if qc.field_mask is None \
+        else [RECTANGLE, f"field {qc.field_name}"]
     cfg_dict = asdict(qc)
     results = fan_out(masked_task, [(label, cfg_dict) for label in labels], workers=workers)
     table = dict(zip(labels, results, strict=True))
@@ -121,16 +136,23 @@ def run_masked_quality(qc: MaskedQualityConfig, workers: int | None = 1) -> dict
 def markdown(doc: dict[str, Any]) -> str:
     qc = doc["config"]["masked_quality"]
     w, h = doc["table"][RECTANGLE]["grid"]
+    if qc.get("field_name"):
+        what = (f"`{doc['command']}`: {doc['fields']} episodes on the real field {qc['field_name']} "
+                f"({qc['area']} searchable cells the drone can reach; `uavsearch field` laid its grid), "
+                f"{qc['targets']} static targets placed uniformly on them; the rectangle is {w} x {h} "
+                f"(the same searchable area), {doc['fields']} episodes. git `{doc['git_revision']}`, "
+                f"{doc['created_utc']}, {doc['seconds']} s.")
+    else:
+        what = (f"`{doc['command']}`: per class {doc['fields']} random masked fields of {qc['area']} searchable "
+                f"cells (sim.gridworld.mask_fields, field i from seed ({qc['seed']}, i)), one episode each, "
+                "each class laid along the grid (`aligned`: the polygon's minimum-area rectangle or its arms along "
+                "the grid's axes, as `uavsearch field` lays its grid by default) and at a random angle to it "
+                "(`rotated`: staircase edges); "
+                f"{qc['targets']} static targets placed uniformly on searchable cells; the rectangle is {w} x {h} "
+                f"(the same searchable area), {doc['fields']} episodes. git `{doc['git_revision']}`, "
+                f"{doc['created_utc']}, {doc['seconds']} s.")
     lines = [
-        "# Search quality on masked fields (issue 28)", "",
-        f"`{doc['command']}`: per class {doc['fields']} random masked fields of {qc['area']} searchable "
-        f"cells (sim.gridworld.mask_fields, field i from seed ({qc['seed']}, i)), one episode each, "
-        "each class laid along the grid (`aligned`: the polygon's minimum-area rectangle or its arms along "
-        "the grid's axes, as `uavsearch field` lays its grid by default) and at a random angle to it "
-        "(`rotated`: staircase edges); "
-        f"{qc['targets']} static targets placed uniformly on searchable cells; the rectangle is {w} x {h} "
-        f"(the same searchable area), {doc['fields']} episodes. git `{doc['git_revision']}`, "
-        f"{doc['created_utc']}, {doc['seconds']} s.", "",
+        "# Search quality on masked fields (issue 28)", "", what, "",
         "Ratio: mean moves / the oracle's (Held-Karp on BFS path lengths around the holes: exact). "
         "vs rectangle: the ratio over the same policy's ratio on the rectangle, minus 1. "
         f"Goal: `belief` within {GOAL:.0%} (at most {GOAL:.0%} above; a lower ratio is better).", "",
@@ -153,9 +175,9 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_masked_quality(doc: dict[str, Any], out: Path) -> list[Path]:
+def write_masked_quality(doc: dict[str, Any], out: Path, stem: str = "masked_quality") -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
-    js, md = out / "masked_quality.json", out / "masked_quality.md"
+    js, md = out / f"{stem}.json", out / f"{stem}.md"
     atomic_write_json(js, doc)
     with atomic_open(md, "w") as f:
         f.write(markdown(doc))
