@@ -112,7 +112,9 @@ def test_real_arducopter_fence_answers_as_emulated() -> None:
             link.send_message(link.conn.mav.set_position_target_local_ned_encode(
                 0, *link.target, M.MAV_FRAME_LOCAL_NED, VEL_ONLY, 0, 0, 0, 5.0, 0, 0, 0, 0, 0, 0, 0))
             time.sleep(0.05)
-        assert link.telemetry.mode == "RTL" and 30.0 < link.telemetry.local["n"] < 37.0, link.telemetry.local
+        # at the fence line (30 m), less what the streamed position lags the mode at 5 m/s under
+        # load (29.68 m seen once: the LOCAL_POSITION_NED sample older than the HEARTBEAT's RTL)
+        assert link.telemetry.mode == "RTL" and 29.0 < link.telemetry.local["n"] < 37.0, link.telemetry.local
         assert _said_since(link, t1, "Fence Breached")
 
 
