@@ -67,11 +67,16 @@ class MaskedQualityConfig:
 
     @property
     def rectangle(self) -> tuple[int, int]:
-        """(width, height) of the rectangle of the same area: the most nearly square one."""
+        """(width, height) of the rectangle of the same area: the most nearly square one; where
+        that is longer than twice its width (a real field's 542 cells: 271 x 2, a strip), the
+        nearest square-ish rectangle instead (542: 24 x 23 = 552, within a side's length)."""
         h = int(np.sqrt(self.area))
         while self.area % h:
             h -= 1
-        return self.area // h, h
+        if self.area // h <= 2 * h:
+            return self.area // h, h
+        h = int(round(np.sqrt(self.area)))
+        return int(round(self.area / h)), h
 
 
 def masked_task(label: str, qc_dict: dict[str, Any]) -> dict[str, Any]:
@@ -140,7 +145,7 @@ def markdown(doc: dict[str, Any]) -> str:
         what = (f"`{doc['command']}`: {doc['fields']} episodes on the real field {qc['field_name']} "
                 f"({qc['area']} searchable cells the drone can reach; `uavsearch field` laid its grid), "
                 f"{qc['targets']} static targets placed uniformly on them; the rectangle is {w} x {h} "
-                f"(the same searchable area), {doc['fields']} episodes. git `{doc['git_revision']}`, "
+                f"(the same searchable area, or the nearest square-ish one where that is a strip), {doc['fields']} episodes. git `{doc['git_revision']}`, "
                 f"{doc['created_utc']}, {doc['seconds']} s.")
     else:
         what = (f"`{doc['command']}`: per class {doc['fields']} random masked fields of {qc['area']} searchable "
