@@ -20,8 +20,10 @@ def test_quality_on_a_real_field_compares_it_with_the_rectangle_of_its_area(tmp_
     doc = json.loads((tmp_path / "fields" / "quality_pond_meadow.json").read_text())
     rect, field = doc["table"]["rectangle"], doc["table"]["field pond_meadow"]
     mask = json.loads(FIELD.read_text())
-    # every episode on the field's reachable mask, the rectangle of the same searchable area
-    assert rect["grid"][0] * rect["grid"][1] == doc["config"]["masked_quality"]["area"]
+    # every episode on the field's reachable mask, the rectangle of (about) the same searchable
+    # area: 542 cells factor only into a 271 x 2 strip, so the nearest square-ish one
+    (w, h), area = rect["grid"], doc["config"]["masked_quality"]["area"]
+    assert abs(w * h - area) <= max(w, h) and max(w, h) <= 2 * min(w, h), (w, h, area)
     assert field["grid"] == [mask["width"], mask["height"]]
     for cell in (rect, field):
         assert cell["rows"]["oracle"]["ratio"] == 1.0 and cell["rows"]["oracle"]["all_found_pct"] == 100.0
