@@ -24,7 +24,7 @@ from sim.gridworld import GridConfig
 class FieldSpec:
     #: a fixed field: rows of 0/1 (searchable), the grid's height x width; None: random fields
     mask: tuple[tuple[int, ...], ...] | None = None
-    #: random fields: the classes drawn from, task by task in turn (sim.gridworld.mask_fields)
+    #: random fields: the classes drawn from, episode by episode in turn (sim.gridworld.mask_fields)
     classes: tuple[str, ...] = ()
     #: random fields: searchable cells per field
     area: int = 100
@@ -57,10 +57,17 @@ class FieldSpec:
                 raise ValueError(f"the field is {m.shape[1]} x {m.shape[0]} cells, the grid "
                                  f"{grid.width} x {grid.height}")
             return grid, m
-        from sim.gridworld.mask_fields import random_masks
+        from sim.gridworld.mask_fields import random_mask, random_masks
 
-        kind = self.classes[seed % len(self.classes)]
-        masks = random_masks(kind, self.area, n, seed, rotated=self.rotated)
+        if len(self.classes) == 1:  # one class: random_masks' fields, as the masked evaluation draws them
+            masks = random_masks(self.classes[0], self.area, n, seed, rotated=self.rotated)
+        else:  # episode i of the class i mod k, from random_masks' per-field seeds; padded alike
+            fields = [random_mask(self.classes[i % len(self.classes)], self.area,
+                                  int(np.random.SeedSequence([seed, i]).generate_state(1)[0]), self.rotated)
+                      for i in range(n)]
+            masks = np.zeros((n, max(f.shape[0] for f in fields), max(f.shape[1] for f in fields)), bool)
+            for i, f in enumerate(fields):
+                masks[i, : f.shape[0], : f.shape[1]] = f
         return dataclasses.replace(grid, width=masks.shape[2], height=masks.shape[1]), masks
 
     def to_dict(self) -> dict:
