@@ -60,7 +60,7 @@ class SearchTrainConfig:
     init: str | None = None
     #: one-hot level planes of the network (SearchNetConfig.level_planes); 0: one height, 5
     #: actions (today's); > 0: the level is an input and climb/descend are actions. A grid with
-    #: levels > 1 needs it >= its levels (SearchTrainConfig.for_grid sets 3, the most there are)
+    #: levels > 1 needs it >= its levels (`train` sets 3, the most GridConfig allows)
     level_planes: int = 0
 
     def __post_init__(self) -> None:
