@@ -11,7 +11,7 @@ import typer
 
 from sim.gridworld import GridConfig
 
-from .options import with_grid
+from .options import DETECTION, LEVELS, with_grid, with_levels
 
 
 class Model(StrEnum):
@@ -66,7 +66,9 @@ def register(app: typer.Typer) -> None:
                                               help="searchnet: DAgger iterations (0: PPO only, with --init)."),
         dagger_episodes: int = typer.Option(400, "--dagger-episodes", min=1,
                                             help="searchnet: student rollouts per DAgger iteration."),
-        ppo_updates: int = typer.Option(20, "--ppo-updates", min=0, help="searchnet: PPO updates after DAgger."),
+        ppo_updates: int | None = typer.Option(None, "--ppo-updates", min=0,
+                                               help="searchnet: PPO updates after DAgger (default 20; 0 with "
+                                                    "levels or masked fields, which PPO does not cover)."),
         ppo_episodes: int = typer.Option(128, "--ppo-episodes", min=1, help="searchnet: episodes per PPO update."),
         val_episodes: int = typer.Option(400, "--val-episodes", min=1,
                                          help="searchnet: validation episodes that pick the best network."),
@@ -79,6 +81,15 @@ def register(app: typer.Typer) -> None:
         gps_sigma: float = typer.Option(0.0, "--gps-sigma", min=0.0,
                                         help="searchnet: GPS noise (m per axis) in the student's DAgger "
                                              "observations (Kalman fix, probabilistic map); 0: exact."),
+        levels: int = LEVELS,
+        detection: Path | None = DETECTION,
+        field: Path | None = typer.Option(
+            None, "--field", help="searchnet: train on this polygon field (field.json from `uavsearch field`): "
+            "its grid and searchable cells (--width/--height are ignored)."),
+        mask_class: list[str] | None = typer.Option(
+            None, "--mask-class", help="searchnet: train on random masked fields of this class (repeat for "
+            "several; sim.gridworld.mask_fields: convex, L, holes, strips)."),
+        mask_area: int = typer.Option(100, "--mask-area", min=4, help="searchnet: searchable cells per random field."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -90,10 +101,19 @@ def register(app: typer.Typer) -> None:
             _train_drqn(out, episodes, seed, resume, threads, grid)
             return
         if model is Model.searchnet:
+            fields = _fields(field, mask_class, mask_area, grid)
+            if fields is not None and field is not None:
+                grid = fields[0]
+            grid = with_levels(grid, levels, detection)
+            if ppo_updates is None:
+                ppo_updates = 0 if levels > 1 or fields is not None else 20
             _train_searchnet(out, grid, seed, resume, threads, workers, ray_address, dagger_iterations,
                              dagger_episodes, ppo_updates, ppo_episodes, epochs if epochs != 50 else None,
-                             init, beta0, val_episodes, gps_sigma)
+                             init, beta0, val_episodes, gps_sigma, None if fields is None else fields[1])
             return
+        if levels > 1 or field is not None or mask_class:
+            raise typer.BadParameter("--levels, --field and --mask-class train the search network (--model searchnet)")
+        ppo_updates = 20 if ppo_updates is None else ppo_updates
         if dataset is None:
             raise typer.BadParameter("dualstream and ssn learn from a dataset: give --dataset DIR",
                                      param_hint="--dataset")
@@ -119,8 +139,10 @@ def register(app: typer.Typer) -> None:
 def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threads: int | None, workers: int,
                      ray_address: str | None, iterations: int, dagger_episodes: int, ppo_updates: int,
                      ppo_episodes: int, epochs: int | None, init: Path | None = None, beta0: float = 1.0,
-                     val_episodes: int = 400, gps_sigma: float = 0.0) -> None:
-    """DAgger on the belief planner, then PPO; no dataset (the teacher labels the student's own states)."""
+                     val_episodes: int = 400, gps_sigma: float = 0.0, fields=None) -> None:
+    """DAgger on the belief planner, then PPO; no dataset (the teacher labels the student's own states).
+    With levels (grid.levels > 1) the network has the level planes of L_max = 3 and climb/descend,
+    and the teacher is the altitude planner; fields: a FieldSpec (masked fields), DAgger only."""
     import torch
 
     from policy.nn import CheckpointError
@@ -131,9 +153,10 @@ def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threa
     torch.set_num_threads(threads or 1)
     try:
         dc = DaggerConfig(iterations=iterations, episodes=dagger_episodes, chunks=max(workers, 1), beta0=beta0,
-                          gps_sigma=gps_sigma, **({"epochs": epochs} if epochs else {}))
+                          gps_sigma=gps_sigma, fields=fields, **({"epochs": epochs} if epochs else {}))
         tc = SearchTrainConfig(dagger=dc, ppo=PpoConfig(episodes=ppo_episodes), ppo_updates=ppo_updates, seed=seed,
-                               val_episodes=val_episodes, init=None if init is None else str(init))
+                               val_episodes=val_episodes, init=None if init is None else str(init),
+                               level_planes=LEVEL_PLANES if grid.levels > 1 else 0)
     except ValueError as e:
         raise typer.BadParameter(str(e), param_hint="--dagger-iterations") from e
     try:
@@ -142,6 +165,31 @@ def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threa
     except CheckpointError as e:
         raise typer.BadParameter(str(e), param_hint="--resume") from e
     typer.echo(f"{path}: the best search network (evaluate: uavsearch eval --policy searchnet --checkpoint {path})")
+
+
+#: searchnet with levels: one-hot planes for L_max = 3 (GridConfig allows 1..3), so one network
+#: serves every field of up to 3 levels
+LEVEL_PLANES = 3
+
+
+def _fields(field: Path | None, classes: list[str] | None, area: int, grid: GridConfig):
+    """(the field file's grid, FieldSpec) for --field, (grid, FieldSpec) of random classes for
+    --mask-class, None for neither; both is a usage error."""
+    if field is None and not classes:
+        return None
+    if field is not None and classes:
+        raise typer.BadParameter("give --field or --mask-class, not both", param_hint="--field")
+    from policy.searchnet.fields import FieldSpec
+
+    if field is not None:
+        from .eval import _field_grid
+
+        cfg, mask = _field_grid(field, grid)
+        return cfg, FieldSpec.fixed(mask)
+    try:
+        return grid, FieldSpec(classes=tuple(classes or ()), area=area)
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--mask-class") from e
 
 
 def _train_drqn(out: Path, episodes: int, seed: int, resume: bool, threads: int | None, grid: GridConfig) -> None:

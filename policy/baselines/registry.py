@@ -110,10 +110,16 @@ def _searchnet(cfg: GridConfig | None = None, checkpoint: Any = None, loop_guard
         if cfg is not None:
             specific = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}_{cfg.width}x{cfg.height}")
             generic = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}")
-            checkpoint = next((p for p in (specific, generic) if p.is_file()), checkpoint)
+            # altitude levels: the network with level planes (one for every field of up to 3 levels)
+            levels = shipped_checkpoint(f"searchnet_{cfg.motion}_{cfg.distribution}_levels") if cfg.levels > 1 else None
+            order = (specific, generic) if levels is None else (levels,)
+            checkpoint = next((p for p in order if p.is_file()), checkpoint)
     policy: Policy = load_searchnet_policy(checkpoint, cfg, temperature=temperature or 0.0)
     if loop_guard is None:  # a greedy network can cycle where the belief stops changing: the
         loop_guard = cfg is None or not cfg.moving  # paper's guard for static targets, as for dualstream
+        # with altitude levels the guard would count a climb or descent as a revisit of the cell
+        # (a descent to recover and the climb back are three visits: its alpha)
+        loop_guard = loop_guard and (cfg is None or cfg.levels == 1)
     if loop_guard:
         from ..loops import LoopGuard
 

@@ -17,8 +17,12 @@ class SearchNetConfig:
     hidden: int = 64
     #: side of the agent-centred window whose first-layer features go to the head as they are
     local: int = 5
-    #: f, b, l, r, stay; static worlds mask the stay
+    #: f, b, l, r, stay; static worlds mask the stay; 7 with altitude levels (+ climb, descend)
     n_actions: int = 5
+    #: one-hot planes of the level flown, L_max of them (0: no level input, the networks from
+    #: before altitude levels): a network with L_max = 3 serves every field with levels 1..3
+    #: (climb and descend are masked where the field has no level to go to)
+    level_planes: int = 0
 
     def __post_init__(self) -> None:
         for name in ("in_channels", "conv1", "conv2", "hidden", "n_actions"):
@@ -26,11 +30,26 @@ class SearchNetConfig:
                 raise ValueError(f"SearchNetConfig.{name} must be >= 1 (got {getattr(self, name)})")
         if self.privileged_channels < 0:
             raise ValueError(f"SearchNetConfig.privileged_channels must be >= 0 (got {self.privileged_channels})")
+        if self.level_planes < 0:
+            raise ValueError(f"SearchNetConfig.level_planes must be >= 0 (got {self.level_planes})")
+        if self.level_planes and self.n_actions < 7:
+            raise ValueError(f"SearchNetConfig: level planes need the 7 actions with climb and descend "
+                             f"(got n_actions {self.n_actions})")
         if self.local < 1 or self.local % 2 == 0:
             raise ValueError(f"SearchNetConfig.local must be a positive odd window side (got {self.local})")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """level_planes appears only where it is used, so a network without levels writes the
+        same document as before they existed."""
+        d = asdict(self)
+        if not self.level_planes:
+            d.pop("level_planes")
+        return d
+
+    @property
+    def field_planes(self) -> int:
+        """Planes per field cell before the egocentric crop adds its own: belief, level, truth."""
+        return self.in_channels + self.level_planes + self.privileged_channels
 
     @classmethod
     def from_dict(cls, d: dict) -> SearchNetConfig:

@@ -21,6 +21,7 @@ from sim.gridworld import GridConfig
 
 from ..fanout import fan_out
 from .encode import egocentric
+from .fields import FieldSpec
 from .model import SearchNet
 from .rollout import RolloutTask, collect, merge
 
@@ -44,6 +45,9 @@ class DaggerConfig:
     #: belief is built from a Kalman-fused position posterior on the probabilistic map, as in
     #: the GPS evaluation; the teacher labels from the true position (policy.searchnet.rollout)
     gps_sigma: float = 0.0
+    #: the fields rolled out on (policy.searchnet.fields: a fixed masked field or random masked
+    #: fields of some classes); None: the whole grid, as before masks
+    fields: FieldSpec | None = None
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.gps_sigma) and self.gps_sigma >= 0):
@@ -57,19 +61,28 @@ class DaggerConfig:
         return self.beta0 * self.beta_decay ** i
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """`fields` appears only where it is used: a run without masks writes what it did before."""
+        d = asdict(self)
+        if self.fields is None:
+            d.pop("fields")
+        return d
 
 
 def rollout_tasks(dc: DaggerConfig, grid: GridConfig, i: int, model: SearchNet | None,
-                  teacher_prior: Any) -> list[RolloutTask]:
-    """Iteration i's tasks; the seeds depend only on (seed_base, i, chunk), never on the worker."""
+                  teacher_prior: Any, level_planes: int = 0) -> list[RolloutTask]:
+    """Iteration i's tasks; the seeds depend only on (seed_base, i, chunk), never on the worker.
+    level_planes: the trained network's (its input gains the level, its actions climb/descend)."""
     beta = dc.beta(i) if model is not None else 1.0
     sd = None if model is None else {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
     mc = None if model is None else model.cfg.to_dict()
     sizes = np.diff(np.linspace(0, dc.episodes, dc.chunks + 1).astype(int))
     steps = max(int(dc.max_steps_factor * grid.width * grid.height), 1)
+    if dc.fields is not None and dc.fields.classes:  # random fields: the cap from their area
+        steps = max(int(dc.max_steps_factor * dc.fields.area), 1)
+    fields = None if dc.fields is None else dc.fields.to_dict()
     return [RolloutTask(grid.to_dict(), int(k), dc.seed_base + 1000 * i + j, beta, mc, sd, teacher_prior,
-                        min(steps, grid.t_e + 1), dc.gps_sigma) for j, k in enumerate(sizes) if k > 0]
+                        min(steps, grid.t_e + 1), dc.gps_sigma, level_planes, fields)
+            for j, k in enumerate(sizes) if k > 0]
 
 
 def gather(tasks: list[RolloutTask], workers: int = 1, ray_address: str | None = None) -> dict[str, np.ndarray]:
@@ -117,7 +130,7 @@ def run_dagger(model: SearchNet, grid: GridConfig, dc: DaggerConfig, teacher_pri
     rng = np.random.default_rng([dc.seed_base, 0xF17])
     for i in range(start, dc.iterations):
         drive = model if i or student_first else None
-        new = gather(rollout_tasks(dc, grid, i, drive, teacher_prior), workers, ray_address)
+        new = gather(rollout_tasks(dc, grid, i, drive, teacher_prior, model.cfg.level_planes), workers, ray_address)
         stats = {"iteration": i, "beta": dc.beta(i) if drive is not None else 1.0, "rollout_moves": float(new["moves"].mean()),
                  "rollout_success": float(new["success"].mean()), "new_states": int(len(new["labels"]))}
         new = {k: v for k, v in new.items() if k not in ("moves", "success")}

@@ -61,3 +61,18 @@ def egocentric_np(planes: np.ndarray, pos: np.ndarray) -> np.ndarray:
     view = out.transpose(0, 2, 3, 1)
     view[bi, rows[:, :, None], cols[:, None, :], : c + 1] = body
     return out
+
+
+def level_planes(level: np.ndarray | None, n: int, h: int, w: int, planes: int,
+                 out: np.ndarray | None = None) -> np.ndarray:
+    """(n, planes, h, w) float32 one-hot of the level flown (level 1 -> plane 0): the level as
+    the network's input, on the field's cells (the crop leaves it 0 off the field like every
+    field plane). level (n,) in 1..planes, None: level 1 (a field without levels)."""
+    lv = np.ones(n, np.int64) if level is None else np.asarray(level, np.int64).reshape(n)
+    if (lv < 1).any() or (lv > planes).any():
+        raise ValueError(f"levels must be in 1..{planes} for this network (got {lv.min()}..{lv.max()})")
+    if out is None:
+        out = np.empty((n, planes, h, w), np.float32)
+    out[...] = 0.0
+    out[np.arange(n), lv - 1] = 1.0
+    return out

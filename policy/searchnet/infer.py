@@ -151,7 +151,7 @@ class FastSearchNet:
         cfg = model.cfg
         sd = {k: v.detach().to("cpu", torch.float32).clone() for k, v in model.state_dict().items()}
         self.cfg = cfg
-        self.field_channels = cfg.in_channels + cfg.privileged_channels + 1  # + on-field
+        self.field_channels = cfg.field_planes + 1  # + on-field
         w1, c = sd["conv1.weight"], self.field_channels
         self.w1_field, self.w1_coords, self.b1 = w1[:, :c], w1[:, c:], sd["conv1.bias"]
         self.w2, self.b2 = sd["conv2.weight"], sd["conv2.bias"]

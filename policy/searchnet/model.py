@@ -22,7 +22,7 @@ class SearchNet(nn.Module):
     def __init__(self, cfg: SearchNetConfig) -> None:
         super().__init__()
         self.cfg = cfg
-        c = cfg.in_channels + cfg.privileged_channels + EXTRA_PLANES
+        c = cfg.field_planes + EXTRA_PLANES
         self.conv1 = nn.Conv2d(c, cfg.conv1, 3, padding=1)
         self.conv2 = nn.Conv2d(cfg.conv1, cfg.conv2, 3, stride=2, padding=1)
         self.conv3 = nn.Conv2d(cfg.conv2, cfg.conv2, 3, stride=2, padding=1)

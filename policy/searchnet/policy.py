@@ -14,7 +14,7 @@ from sim.gridworld import Episodes, GridConfig
 from ..base import Observation, Policy
 from ..belief import BeliefState
 from .checkpoint import load_searchnet
-from .encode import egocentric_np
+from .encode import egocentric_np, level_planes
 from .infer import FastSearchNet
 from .model import SearchNet
 
@@ -52,6 +52,10 @@ class SearchNetPolicy(Policy):
         self._fast: tuple[tuple, FastSearchNet] | None = None
 
     def reset(self, cfg: GridConfig, n: int, seed: int, episodes: Episodes | None = None) -> None:
+        lp = self.model.cfg.level_planes
+        if cfg.levels > 1 and cfg.levels > lp:
+            raise ValueError(f"this search network knows {max(lp, 1)} level(s); the field has {cfg.levels} "
+                             "(train one with `uavsearch train --model searchnet --levels N`)")
         self.cfg = cfg
         self.belief = BeliefState(cfg, n)
         self.rng = np.random.default_rng([seed, 0x5EA5C4])
@@ -74,17 +78,27 @@ class SearchNetPolicy(Policy):
             self.belief = BeliefState(self.cfg, self.belief.n, mask=obs.mask)
             self._constants_in_buffer = False
         self.belief.update(obs)
+        lp = self.model.cfg.level_planes
         if self.fast is not None:
-            planes = self.belief.planes(out=self.fast.input_planes(self.cfg.height, self.cfg.width),
+            buf = self.fast.input_planes(self.cfg.height, self.cfg.width)
+            planes = self.belief.planes(out=buf[:, : buf.shape[1] - lp] if lp else buf,
                                         constants=not self._constants_in_buffer)
+            if lp:  # the level flown, one-hot, after the belief planes
+                level_planes(obs.level, 1, self.cfg.height, self.cfg.width, lp, out=buf[:, buf.shape[1] - lp:])
+                planes = buf
             self._constants_in_buffer = True
             return self.fast.logits(planes, obs.positions, obs.valid)
         with torch.inference_mode():
-            x, mask = obs_tensors(self.belief.planes(), obs.positions, obs.valid, self.model.cfg.n_actions)
+            planes = self.belief.planes()
+            if lp:
+                planes = np.concatenate([planes, level_planes(obs.level, len(planes), self.cfg.height,
+                                                              self.cfg.width, lp)], axis=1)
+            x, mask = obs_tensors(planes, obs.positions, obs.valid, self.model.cfg.n_actions)
             return self.model(x, mask).numpy()
 
     def logits(self, obs: Observation) -> np.ndarray:
-        """Update the belief with obs and return (n, 5) masked logits for every episode."""
+        """Update the belief with obs and return (n, n_actions) masked logits for every episode
+        (5; 7 for a network with levels)."""
         return np.array(self._logits(obs))
 
     def act(self, obs: Observation) -> np.ndarray:

@@ -41,10 +41,15 @@ class RolloutTask:
     max_steps: int | None = None
     #: GPS noise (metres per axis) in the student's observations; 0: exact
     gps_sigma: float = 0.0
+    #: one-hot level planes of the network trained (SearchNetConfig.level_planes; 0: none, 5
+    #: actions); > 0: the planes gain the level flown and the actions climb and descend (7)
+    level_planes: int = 0
+    #: the fields (policy.searchnet.fields.FieldSpec as a dict); None: the whole grid
+    fields: dict | None = None
 
 
-def pad_valid(valid: np.ndarray) -> np.ndarray:
-    out = np.zeros((len(valid), N_ACTIONS), dtype=bool)
+def pad_valid(valid: np.ndarray, n_actions: int = N_ACTIONS) -> np.ndarray:
+    out = np.zeros((len(valid), n_actions), dtype=bool)
     out[:, : valid.shape[1]] = valid
     return out
 
@@ -52,7 +57,10 @@ def pad_valid(valid: np.ndarray) -> np.ndarray:
 def collect(task: RolloutTask) -> dict[str, np.ndarray]:
     """Roll out task.episodes episodes; return the student's states with the teacher's labels:
     planes (N, C, h, w) float16, positions (N, 2) int16, valid (N, 5) bool, labels (N,) int64,
-    and per episode moves and success.
+    and per episode moves and success. With level planes: C gains them and valid has 7
+    columns (climb, descend); the teacher is then `belief` with levels, the altitude planner.
+    With fields: each task draws its own (FieldSpec.draw), the teacher and the student's belief
+    know the mask (as in evaluation: obs.mask).
 
     With task.gps_sigma > 0 the student sees what the GPS evaluation gives (policy.evaluation.gps:
     a Kalman-fused fix, the posterior over cells, its most likely cell as the position and
@@ -63,9 +71,18 @@ def collect(task: RolloutTask) -> dict[str, np.ndarray]:
     from ..evaluation.gps import GpsNoise, GpsTracker
 
     torch.set_num_threads(1)
+    from .encode import level_planes
+    from .fields import FieldSpec
+
     cfg = GridConfig.from_dict(task.grid)
     n = task.episodes
-    ep = sample_episodes(cfg, n, task.seed)
+    masks = None
+    spec = FieldSpec.from_dict(task.fields)
+    if spec is not None:
+        cfg, masks = spec.draw(cfg, n, task.seed)
+    ep = sample_episodes(cfg, n, task.seed, masks)
+    lp = task.level_planes
+    n_act = 7 if lp else N_ACTIONS
     world = BatchGridWorld(ep, task.seed)
     teacher = make_policy("belief", cfg, prior=task.teacher_prior)
     teacher.reset(cfg, n, task.seed)
@@ -74,7 +91,7 @@ def collect(task: RolloutTask) -> dict[str, np.ndarray]:
         student = SearchNet(SearchNetConfig.from_dict(task.model_cfg))
         student.load_state_dict({k: torch.as_tensor(v) for k, v in task.state_dict.items()})
         student.eval()
-    belief = BeliefState(cfg, n)
+    belief = BeliefState(cfg, n) if masks is None else BeliefState(cfg, n, mask=masks)
     rng = np.random.default_rng([task.seed, 0xDA66E5])
     limit = task.max_steps or cfg.t_e + 1
     tracker = None
@@ -94,8 +111,10 @@ def collect(task: RolloutTask) -> dict[str, np.ndarray]:
             seen = tracker.observation(obs.views, obs.t, obs.active)
         belief.update(seen)
         planes = belief.planes()
+        if lp:
+            planes = np.concatenate([planes, level_planes(obs.level, n, cfg.height, cfg.width, lp)], axis=1)
         act = obs.active
-        valid = pad_valid(seen.valid)
+        valid = pad_valid(seen.valid, n_act)
         out["planes"].append(planes[act].astype(np.float16))
         out["positions"].append(seen.positions[act].astype(np.int16))
         out["valid"].append(valid[act])
@@ -103,7 +122,7 @@ def collect(task: RolloutTask) -> dict[str, np.ndarray]:
         a = label.copy()
         if student is not None and task.beta < 1.0:
             with torch.inference_mode():
-                x, mask = obs_tensors(planes, seen.positions, valid, N_ACTIONS)
+                x, mask = obs_tensors(planes, seen.positions, valid, n_act)
                 mine = student(x, mask).argmax(dim=1).numpy()
             use_student = rng.random(n) >= task.beta
             a = np.where(use_student, mine, label)
@@ -118,4 +137,13 @@ def collect(task: RolloutTask) -> dict[str, np.ndarray]:
 
 
 def merge(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Concatenate tasks' data; planes of different grids (random masked fields) are padded to
+    the largest at the bottom and right with zeros (off the field, as a batch of padded fields
+    shows it; positions are top-left based and keep)."""
+    shapes = {p["planes"].shape[-2:] for p in parts if "planes" in p}
+    if len(shapes) > 1:
+        h = max(s[0] for s in shapes)
+        w = max(s[1] for s in shapes)
+        parts = [{**p, "planes": np.pad(p["planes"], ((0, 0), (0, 0), (0, h - p["planes"].shape[2]),
+                                                       (0, w - p["planes"].shape[3])))} for p in parts]
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

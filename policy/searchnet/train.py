@@ -31,6 +31,7 @@ from ..nn.checkpoint import CheckpointError
 from .checkpoint import load_searchnet, read_searchnet, save_searchnet
 from .config import SearchNetConfig
 from .dagger import DaggerConfig, run_dagger
+from .fields import FieldSpec
 from .model import SearchNet
 from .policy import SearchNetPolicy
 from .ppo import PpoConfig, run_ppo
@@ -57,24 +58,44 @@ class SearchTrainConfig:
     #: start the actor from this searchnet checkpoint (fine-tuning: more DAgger, PPO) instead of
     #: random weights; its validation is the mark the run must beat to replace searchnet.pt
     init: str | None = None
+    #: one-hot level planes of the network (SearchNetConfig.level_planes); 0: one height, 5
+    #: actions (today's); > 0: the level is an input and climb/descend are actions. A grid with
+    #: levels > 1 needs it >= its levels (`train` sets 3, the most GridConfig allows)
+    level_planes: int = 0
 
     def __post_init__(self) -> None:
+        if (self.level_planes or self.dagger.fields is not None) and self.ppo_updates:
+            raise ValueError("SearchTrainConfig: PPO is built for one height on the whole rectangle; with "
+                             "levels or masked fields train by DAgger only (ppo_updates 0)")
         if self.ppo_updates < 0 or self.val_episodes < 1 or self.val_every < 1:
             raise ValueError(f"SearchTrainConfig: ppo_updates >= 0, val_episodes >= 1, val_every >= 1 (got {self})")
         if self.dagger.iterations == 0 and self.init is None:
             raise ValueError("SearchTrainConfig: 0 DAgger iterations only when fine-tuning (give init)")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The new options appear only where they are used: a run without levels and masks writes
+        (and resumes against) the document it did before them."""
+        d = {**asdict(self), "dagger": self.dagger.to_dict()}
+        if not self.level_planes:
+            d.pop("level_planes")
+        return d
 
     def net(self) -> SearchNetConfig:
+        if self.level_planes:
+            return SearchNetConfig(BELIEF_CHANNELS, conv1=self.conv1, conv2=self.conv2, hidden=self.hidden,
+                                   n_actions=7, level_planes=self.level_planes)
         return SearchNetConfig(BELIEF_CHANNELS, conv1=self.conv1, conv2=self.conv2, hidden=self.hidden)
 
 
-def validate(model: SearchNet, grid: GridConfig, episodes: int, seed: int = VAL_SEED) -> dict[str, float]:
-    """Mean moves and all-found rate of the greedy network on validation episodes."""
+def validate(model: SearchNet, grid: GridConfig, episodes: int, seed: int = VAL_SEED,
+             fields: FieldSpec | None = None) -> dict[str, float]:
+    """Mean moves and all-found rate of the greedy network on validation episodes (on fields
+    drawn from the validation seed where the run trains on masked fields)."""
     pol = SearchNetPolicy(model)
-    ep = sample_episodes(grid, episodes, seed)
+    masks = None
+    if fields is not None:
+        grid, masks = fields.draw(grid, episodes, seed)
+    ep = sample_episodes(grid, episodes, seed, masks)
     pol.reset(grid, episodes, seed)
     world = BatchGridWorld(ep, seed)
     while not world.done.all():
@@ -104,7 +125,11 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
     torch.manual_seed(tc.seed)
     actor = SearchNet(tc.net())
     critic = SearchNet(SearchNetConfig(BELIEF_CHANNELS, privileged_channels=1, conv1=tc.conv1, conv2=tc.conv2,
-                                       hidden=tc.hidden))
+                                       hidden=tc.hidden, n_actions=actor.cfg.n_actions,
+                                       level_planes=tc.level_planes))
+    if grid.levels > max(tc.level_planes, 1):
+        raise CheckpointError(f"the grid has {grid.levels} levels: the network needs level_planes >= {grid.levels} "
+                              f"(got {tc.level_planes})")
     if tc.init is not None:
         init_net, _ = load_searchnet(tc.init)
         if init_net.cfg != actor.cfg:
@@ -158,7 +183,7 @@ def train_searchnet(grid: GridConfig, out: str | Path, tc: SearchTrainConfig, re
 
     def consider(metrics: dict) -> None:
         """Validate; keep the network as searchnet.pt when it is the best so far."""
-        v = validate(actor, grid, tc.val_episodes)
+        v = validate(actor, grid, tc.val_episodes, fields=tc.dagger.fields)
         metrics.update(v)
         key = (-v["val_success"], v["val_moves"])
         if st["best"] is None or key < tuple(st["best"]["key"]):
