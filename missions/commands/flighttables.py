@@ -46,11 +46,20 @@ def register(app: typer.Typer) -> None:
         field: Path | None = typer.Option(
             None, "--field", help="A real field's field.json (`uavsearch field`): every flight searches inside its "
                                   "polygon (our vehicle), checked for setpoints, breaches and true positions off it."),
+        agents: int = typer.Option(
+            1, "--agents", min=1, max=8,
+            help="Fly a fleet of N vehicles on one field from one companion (docs/fleet_flight.md): makespan "
+                 "against the team grid world's -> OUT/fleet_flights.{md,json} (default field 20 x 20 / 10)."),
     ) -> None:
         """Fly the same policy on >= 20 seeds and compare each flight's moves with the grid world's."""
         import sys
 
         from missions.flight_table import flight_vs_grid
+
+        if agents > 1:
+            _fleet_table(agents, seeds, first_seed, speedup, out, width, height, targets, autopilot, camera, levels,
+                         field, policy)
+            return
 
         if field is not None:
             from missions.field_run import load_polygon
@@ -101,6 +110,32 @@ def register(app: typer.Typer) -> None:
         s = doc["summary"]
         typer.echo(f"flight/grid: mean {s['ratio_mean']}, max {s['ratio_max']}, over 1.5: {s['over_1_5']}; "
                    f"mean NEES {s['nees_mean']}; {out / 'flight_vs_grid.md'}")
+
+    def _fleet_table(agents: int, seeds: int, first_seed: int, speedup: float, out: Path, width: int | None,
+                     height: int | None, targets: int | None, autopilot: str, camera: str, levels: int,
+                     field: Path | None, policy: str | None) -> None:
+        import sys
+
+        from missions.fleet_table import fleet_flight_table
+        from sim.gridworld import ConfigError, GridConfig
+
+        for bad, what in ((autopilot != "ours", "--autopilot"), (camera != "mavlink", "--camera"),
+                          (levels != 1, "--levels"), (field is not None, "--field"), (policy is not None, "--policy")):
+            if bad:
+                raise typer.BadParameter("a fleet flies our SITL vehicles with their MAVLink cameras, one height, "
+                                         "the team planner, on a rectangle (for now)", param_hint=what)
+        try:
+            grid = GridConfig(width=width or 20, height=height or 20, n_targets=targets or 10)
+        except ConfigError as e:
+            raise typer.BadParameter(str(e)) from e
+        command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["flight-table"] else \
+            "python -m missions flight-table --agents"
+        doc = fleet_flight_table(agents, grid, _seeds(first_seed, seeds), out, speedup, command=command,
+                                 echo=typer.echo)
+        s = doc["summary"]
+        typer.echo(f"fleet of {agents}: makespan flight/grid mean {s['flight_grid_mean']:.3f}, max "
+                   f"{s['flight_grid_max']:.3f}; truly found {s['truly_found_pct']:.1f} %; separation refused "
+                   f"{s['separation_refused']}; {out / 'fleet_flights.md'}")
 
     @app.command("flight-pool")
     def flight_pool(
