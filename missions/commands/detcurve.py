@@ -9,6 +9,8 @@ from pathlib import Path
 
 import typer
 
+from .options import check_out_dir
+
 
 def register(app: typer.Typer) -> None:
     @app.command("detector-curve")
@@ -23,8 +25,7 @@ def register(app: typer.Typer) -> None:
         """Measure p_d(level, ring) and false alarms of the companion's detector on rendered frames."""
         from missions.detector_curve import CurveConfig, measure, table, write_curve
 
-        if out.exists() and not out.is_dir():
-            raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+        check_out_dir(out)
         try:
             cfg = CurveConfig(frames=frames, seed=seed, camera_px=camera_px, levels=tuple(range(1, levels + 1)))
         except ValueError as e:

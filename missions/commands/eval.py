@@ -10,7 +10,7 @@ import typer
 
 from sim.gridworld import GridConfig
 
-from .options import DETECTION, LEVELS, T_E, with_grid, with_levels
+from .options import DETECTION, LEVELS, T_E, check_out_dir, with_grid, with_levels
 
 
 def register(app: typer.Typer) -> None:
@@ -55,8 +55,7 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(
                 f"unknown policy {', '.join(unknown)}; known: {', '.join(known)}", param_hint="--policy"
             )
-        if out is not None and out.exists() and not out.is_dir():
-            raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+        check_out_dir(out)
         if checkpoint is not None and not checkpoint.is_file():
             raise typer.BadParameter(f"no checkpoint file at {checkpoint}", param_hint="--checkpoint")
         cfg, mask = grid, None

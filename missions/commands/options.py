@@ -46,6 +46,12 @@ DETECTION = typer.Option(None, "--detection",
 T_E = typer.Option(300, "--t-e", min=1, help="Move limit t_e of an episode.")
 
 
+def check_out_dir(out: Any) -> None:
+    """A usage error when --out names a file (it takes a directory); None or a new path passes."""
+    if out is not None and out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+
+
 def with_levels(grid: GridConfig, levels: int = 1, detection: Any = None, t_e: int | None = None) -> GridConfig:
     """grid with altitude levels, a detection table (a JSON path) and t_e; a bad value is a
     usage error naming it. levels 1 without a table is the grid unchanged."""

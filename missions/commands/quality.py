@@ -9,7 +9,7 @@ import typer
 
 from provenance import InputFileError, read_json
 
-from .options import DETECTION, LEVELS
+from .options import DETECTION, LEVELS, check_out_dir
 
 
 def register(app: typer.Typer) -> None:
@@ -67,8 +67,7 @@ def register(app: typer.Typer) -> None:
             )
             from sim.gridworld.mask_fields import MASK_CLASSES
 
-            if out.exists() and not out.is_dir():
-                raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+            check_out_dir(out)
             try:
                 mq = MaskedQualityConfig(fields=masked_fields, area=masked_area, seed=seed,
                                          classes=tuple(mask_class) if mask_class else MASK_CLASSES)
@@ -88,8 +87,7 @@ def register(app: typer.Typer) -> None:
             write_quality,
         )
 
-        if out.exists() and not out.is_dir():
-            raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+        check_out_dir(out)
         try:
             qc = QualityConfig(
                 episodes=episodes, seed=seed, gps_episodes=gps_episodes, gps=gps,
@@ -125,8 +123,7 @@ def _field_quality(field: Path, episodes: int, seed: int, workers: int | None, o
 
     from .eval import _field_grid
 
-    if out.exists() and not out.is_dir():
-        raise typer.BadParameter(f"{out} is a file; --out takes a directory", param_hint="--out")
+    check_out_dir(out)
     _, mask = _field_grid(field, GridConfig())
     name = field.resolve().parent.name if field.name == "field.json" else field.stem
     try:
