@@ -238,6 +238,8 @@ class Registration:
             if team:
                 # a teammate's find (localisation.team_finds): where its finder placed it, fused
                 # with the finder's variance added, gated on the two estimates' together
+                if not self.found.register_landmarks:
+                    continue
                 at, var = self.found.team_landmark(i)
             else:
                 on = self.found.cell_of(i)

@@ -57,6 +57,8 @@ MISS_P = 0.05
 IN_VIEW_MARGIN_M = 0.9
 #: a blob within this many sigmas of where a find would show is taken to be it showing
 GATE_SHOWN = 3.0
+#: posterior components lighter than this are left out of the matching
+MIN_COMPONENT_W = 0.01
 #: ids of teammates' finds, as `TeamFoundTargets.identify` returns them: this plus the index in
 #: the registry (a vehicle's own finds keep their indices, 0, 1, ...)
 TEAM_ID = 1_000_000
@@ -124,6 +126,9 @@ class TeamFoundTargets(FoundTargets):
         """fov_deg: the camera's field of view (the detector's): how far out a find shows."""
         super().__init__(spec, estimator, intake)
         self.team, self.vehicle, self.fov_deg = team, vehicle, fov_deg
+        #: whether a teammate's find seen registers this vehicle's position (False: it is only
+        #: told apart from a new find)
+        self.register_landmarks = True
 
     def __len__(self) -> int:
         """Own finds and teammates' (so `register_known` looks at a frame once a teammate found one)."""
@@ -133,18 +138,27 @@ class TeamFoundTargets(FoundTargets):
     def is_team(i: int | None) -> bool:
         return i is not None and i >= TEAM_ID
 
-    def camera_field_ne(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Where this vehicle's camera is at simulated time t (field north, east) and that
-        estimate's variance per axis: the autopilot's reading less the estimated bias, as the
-        service places the camera for its view (`PolicyService._camera_ne`), else the posterior
-        mean; the variance is the position posterior's."""
-        post = self.estimator.posterior(t)
+    def camera_components(self, t: float) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """Where this vehicle's camera is at simulated time t (field north, east), per component
+        of its position posterior (one per lattice hypothesis): (weight, placement, variance per
+        axis). Each placed as the service places the camera for its view (the autopilot's
+        reading less that component's bias, `PolicyService._place`), else at its mean. Per
+        component, not the likeliest one's placement with the mixture's variance: that wide
+        variance made a new target a cell beside a teammate's find look like the find (seed 8:
+        vehicle 0, its posterior split between its true cell and the next, took a new cow for
+        the find two cells off, which was then found 44 rounds later)."""
+        weights, means, covs = self.estimator.components(t)
+        bias = self.estimator.component_bias()
         here = self.intake.local_at(t)
-        if here is None or not self.spec.register or not self.spec.map_from_reading:
-            at = post.mean_ned[:2]
-        else:
-            at = here + self.intake.local_origin_in_field()[:2] - self.estimator.bias_ned[:2]
-        return np.asarray(at, dtype=float), np.diag(post.horizontal_cov).copy()
+        placed = here is not None and self.spec.register and self.spec.map_from_reading
+        origin = self.intake.local_origin_in_field()[:2] if placed else None
+        out = []
+        for w, mean, cov, b in zip(weights, means, covs, bias, strict=True):
+            if w < MIN_COMPONENT_W:
+                continue
+            at = here + origin - b[:2] if placed else mean[:2]
+            out.append((float(w), np.asarray(at, dtype=float), np.diag(cov[:2, :2]).copy()))
+        return out
 
     def identify(self, t: float, blobs: list[Blob]) -> list[int | None]:
         """Per blob: its own find (as a lone vehicle's, `FoundTargets.identify`), else a
@@ -155,20 +169,22 @@ class TeamFoundTargets(FoundTargets):
         if not rest or not finds:
             return ids
         height = self.camera_height()
-        cam, cam_var = self.camera_field_ne(t)
-        at = [cam + self._match_offset(blobs[j], height) for j in rest]
-        got = self.assign_team(at, cam_var, [blobs[j].cut_axes for j in rest], [f for _, f in finds], cam)
+        offsets = [self._match_offset(blobs[j], height) for j in rest]
+        got = self.assign_team(offsets, [blobs[j].cut_axes for j in rest], [f for _, f in finds],
+                               self.camera_components(t))
         for j, k in zip(rest, got, strict=True):
             if k is not None:
                 ids[j] = TEAM_ID + finds[k][0]
                 self.team.count(self.team.sightings, self.vehicle)
         return ids
 
-    def assign_team(self, at_ne: list[np.ndarray], cam_var: np.ndarray, cuts: list[tuple[bool, bool]],
-                    finds: list[TeamFind], cam_ne: np.ndarray | None = None) -> list[int | None]:
+    def assign_team(self, offsets: list[np.ndarray], cuts: list[tuple[bool, bool]], finds: list[TeamFind],
+                    cameras: list[tuple[float, np.ndarray, np.ndarray]]) -> list[int | None]:
         """Which of the teammates' finds (index into finds), if any, each sighting is, jointly,
-        one to one. Sighting j at field position at_ne[j] (this camera's estimate cam_ne, with
-        variance cam_var per axis) against find i:
+        one to one. Sighting j is a blob at offsets[j] (north, east m) from the nadir; the camera
+        is at one of `cameras` (weight, field position, variance per axis: the posterior's
+        components, `camera_components`), the sighting at that plus its offset. Against find i,
+        per camera hypothesis (the likelihoods summed over them by weight):
 
         - the same target: the two positions differ by the two estimates' errors and the two
           blobs' (variances summed: the vehicles' errors are independent), or, with probability
@@ -176,42 +192,54 @@ class TeamFoundTargets(FoundTargets):
           which its posterior does not know: seed 2's vehicle 1 was 1.8 m off at 0.1 m sd, its
           frame locked on its own find recorded a cell off). Beyond GATE sigmas of the first
           and GATE_OFF_CELL of the second: not it;
-        - a new target on a cell next to the find, a priori as likely as a cell holding a target
-          (`FoundTargets.assign`'s rule, in the field frame). Then this vehicle's frame is right,
+        - a new target on a cell (next to the find or further), a priori as likely as a cell
+          holding a target (`FoundTargets.assign`'s rule, in the field frame; there the cells
+          next to the find only, as a far sighting is new whatever its score: summed over the
+          camera hypotheses the score's scale counts). Then this vehicle's frame is right,
           and the find itself stands where its finder put it in this frame: where that is well
           inside the frame and no other blob of the frame is there, the new target is as likely
           as the detector missing a whole target (MISS_P). That decides the lattice ambiguity
           a posterior cannot: a target seen a cell off a teammate's find is that find unless the
           find shows beside it."""
-        m, k = len(at_ne), len(finds)
+        m, k = len(offsets), len(finds)
         g = self.spec.grid
         p_new = min(g.n_targets / (g.width * g.height), 0.5)
-        log_prior = math.log(p_new / (1.0 - p_new))
         reach = half_footprint_m(self.camera_height(), self.fov_deg) - IN_VIEW_MARGIN_M
-        at = np.asarray(at_ne, dtype=float).reshape(m, 2)
-        same = np.full((m, k), -1e9)
-        new = np.full(m, -np.inf)
-        for i, f in enumerate(finds):
-            base = cam_var + f.var_ne + 2.0 * MATCH_SD_M**2
-            shown = cam_ne is not None and bool(np.all(np.abs(f.ne - cam_ne) <= reach))
-            for j, cut in enumerate(cuts):
-                v = base + np.where(cut, CUT_SD_M**2, 0.0)
-                d = at[j] - f.ne
-                norm = -0.5 * float(np.sum(np.log(v)))
-                q0 = float(np.sum(d * d / v))
-                qn = np.sum((d - _NEIGHBOURS) ** 2 / v, axis=1)
-                if q0 <= GATE**2 or float(qn.min()) <= GATE_OFF_CELL**2:
-                    same[j, i] = norm + math.log((1.0 - OFF_CELL) * math.exp(-0.5 * q0)
-                                                 + OFF_CELL / len(_NEIGHBOURS) * float(np.exp(-0.5 * qn).sum()))
-                other = norm - 0.5 * float(qn.min()) + log_prior
-                if shown:
-                    others = np.delete(at, j, axis=0)
-                    if not np.any(np.sum((others - f.ne) ** 2 / base, axis=1) <= GATE_SHOWN**2):
-                        other += math.log(MISS_P)
-                new[j] = max(new[j], other)
+        off = np.asarray(offsets, dtype=float).reshape(m, 2)
+        same_l = np.zeros((m, k))  # likelihoods, summed over the camera hypotheses by weight
+        new_l = np.zeros(m)
+        total_w = sum(w for w, _, _ in cameras)
+        for w, cam, cam_var in cameras:
+            at = cam + off
+            new_c = np.zeros(m)
+            for i, f in enumerate(finds):
+                base = cam_var + f.var_ne + 2.0 * MATCH_SD_M**2
+                shown = bool(np.all(np.abs(f.ne - cam) <= reach))
+                for j, cut in enumerate(cuts):
+                    v = base + np.where(cut, CUT_SD_M**2, 0.0)
+                    d = at[j] - f.ne
+                    norm = 1.0 / (2.0 * math.pi * math.sqrt(float(np.prod(v))))
+                    q0 = float(np.sum(d * d / v))
+                    qn = np.sum((d - _NEIGHBOURS) ** 2 / v, axis=1)
+                    if q0 <= GATE**2 or float(qn.min()) <= GATE_OFF_CELL**2:
+                        same_l[j, i] += w / total_w * norm * ((1.0 - OFF_CELL) * math.exp(-0.5 * q0)
+                                                              + OFF_CELL / len(_NEIGHBOURS) * float(np.exp(-0.5 * qn).sum()))
+                    # a new target on the lattice point nearest it (as the find stands on one;
+                    # not on the find's own cell): far from every find as likely as near one
+                    lat = 2.0 * np.round(d / 2.0)
+                    q_new = float(qn.min()) if not lat.any() else float(np.sum((d - lat) ** 2 / v))
+                    other = norm * math.exp(-0.5 * q_new) * p_new / (1.0 - p_new)
+                    if shown and not np.any(np.sum((np.delete(at, j, axis=0) - f.ne) ** 2 / base, axis=1)
+                                            <= GATE_SHOWN**2):
+                        other *= MISS_P
+                    new_c[j] = max(new_c[j], other)
+            new_l += w / total_w * new_c
+        with np.errstate(divide="ignore"):
+            same = np.where(same_l > 0, np.log(same_l), -1e9)
+            new = np.maximum(np.log(new_l), -1e8)
         score = np.full((m, k + m), -1e9)
         score[:, :k] = same
-        score[np.arange(m), k + np.arange(m)] = np.maximum(new, -1e8)
+        score[np.arange(m), k + np.arange(m)] = new
         rows, cols = linear_sum_assignment(-score)
         out: list[int | None] = [None] * m
         for j, c in zip(rows, cols, strict=True):

@@ -26,18 +26,31 @@ def _memory() -> tuple[TeamFoundTargets, TeamFind]:
 
 def test_a_target_a_cell_off_a_teammates_find_is_that_find_unless_the_find_shows_beside_it() -> None:
     tf, find = _memory()
-    var = np.full(2, 0.01)  # this vehicle's posterior: sure of itself (and a cell off)
     cam = cell_to_ned(np.array([10, 6]))  # it believes it is over (10, 6); the find is a cell south
-    under = cam + np.array([0.1, 0.2])
+    sure = [(1.0, cam, np.full(2, 0.01))]  # its posterior: one hypothesis, sure of itself (and a cell off)
+    under = np.array([0.1, 0.2])
     # the target under the camera, and nothing where the find would show if this frame were right
-    assert tf.assign_team([under], var, [FLAT], [find], cam) == [0]
+    assert tf.assign_team([under], [FLAT], [find], sure) == [0]
     # the find shows a cell south in the frame too: the one under the camera is a new target
-    assert tf.assign_team([under, find.ne + np.array([0.1, -0.1])], var, [FLAT, FLAT], [find], cam) == [None, 0]
-    # without knowing where the camera is (no view to check) the lattice prior decides: new
-    assert tf.assign_team([under], var, [FLAT], [find], None) == [None]
+    beside = find.ne - cam + np.array([0.1, -0.1])
+    assert tf.assign_team([under, beside], [FLAT, FLAT], [find], sure) == [None, 0]
     # seen where its finder put it: the find; two cells off: not it
-    assert tf.assign_team([find.ne + 0.2], var, [FLAT], [find], cam) == [0]
-    assert tf.assign_team([find.ne + np.array([4.0, 0.0])], var, [FLAT], [find], cam) == [None]
+    assert tf.assign_team([find.ne - cam + 0.2], [FLAT], [find], sure) == [0]
+    assert tf.assign_team([find.ne - cam + np.array([4.0, 0.0])], [FLAT], [find], sure) == [None]
+
+
+def test_a_posterior_split_between_two_cells_is_weighed_per_hypothesis() -> None:
+    tf, find = _memory()
+    # the camera truly over (10, 4), its posterior split between that (0.45) and a cell south,
+    # (10, 5) (0.55); a new target a cell south of the truth, at (10, 5), two cells off the find
+    # at (10, 7). Placed by the likelier hypothesis alone, with the mixture's spread, it looked
+    # like the find (seed 8: found 44 rounds later); weighed per hypothesis it is new
+    right, wrong = cell_to_ned(np.array([10, 4])), cell_to_ned(np.array([10, 5]))
+    split = [(0.45, right, np.full(2, 0.1)), (0.55, wrong, np.full(2, 0.1))]
+    new_cow = cell_to_ned(np.array([10, 5])) - right
+    assert tf.assign_team([new_cow], [FLAT], [find], split) == [None]
+    # a cow on the find's own cell in the likelier hypothesis' frame: the find
+    assert tf.assign_team([find.ne - wrong + 0.1], [FLAT], [find], split) == [0]
 
 
 def test_a_vehicles_own_finds_are_not_its_teammates() -> None:
