@@ -57,6 +57,8 @@ MISS_P = 0.05
 IN_VIEW_MARGIN_M = 0.9
 #: a blob within this many sigmas of where a find would show is taken to be it showing
 GATE_SHOWN = 3.0
+#: the cell size (m): targets stand on a lattice of cell centres this far apart
+CELL_M = 2.0
 #: posterior components lighter than this are left out of the matching
 MIN_COMPONENT_W = 0.01
 #: ids of teammates' finds, as `TeamFoundTargets.identify` returns them: this plus the index in
@@ -192,15 +194,15 @@ class TeamFoundTargets(FoundTargets):
           which its posterior does not know: seed 2's vehicle 1 was 1.8 m off at 0.1 m sd, its
           frame locked on its own find recorded a cell off). Beyond GATE sigmas of the first
           and GATE_OFF_CELL of the second: not it;
-        - a new target on a cell (next to the find or further), a priori as likely as a cell
-          holding a target (`FoundTargets.assign`'s rule, in the field frame; there the cells
-          next to the find only, as a far sighting is new whatever its score: summed over the
-          camera hypotheses the score's scale counts). Then this vehicle's frame is right,
-          and the find itself stands where its finder put it in this frame: where that is well
-          inside the frame and no other blob of the frame is there, the new target is as likely
-          as the detector missing a whole target (MISS_P). That decides the lattice ambiguity
-          a posterior cannot: a target seen a cell off a teammate's find is that find unless the
-          find shows beside it."""
+        - a new target on a cell centre (the field's lattice, this camera's error and one
+          blob's between), a priori as likely as a cell holding a target (`FoundTargets.assign`'s
+          prior; there the lattice is the find's neighbours, the reading frame knowing no cell
+          centres). Then this vehicle's frame is right, and every find stands where its finder
+          put it in this frame: a find well inside the frame that no other blob is at is one the
+          detector missed, as likely as MISS_P. That decides the lattice ambiguity a posterior
+          cannot: a target seen a cell off a teammate's find is that find unless the find shows
+          beside it. (The same penalty holds under "the same target" for the other finds shown:
+          it weighs the camera hypotheses too.)"""
         m, k = len(offsets), len(finds)
         g = self.spec.grid
         p_new = min(g.n_targets / (g.width * g.height), 0.5)
@@ -209,31 +211,35 @@ class TeamFoundTargets(FoundTargets):
         same_l = np.zeros((m, k))  # likelihoods, summed over the camera hypotheses by weight
         new_l = np.zeros(m)
         total_w = sum(w for w, _, _ in cameras)
+        prior = p_new / (1.0 - p_new)
         for w, cam, cam_var in cameras:
             at = cam + off
-            new_c = np.zeros(m)
-            for i, f in enumerate(finds):
-                base = cam_var + f.var_ne + 2.0 * MATCH_SD_M**2
-                shown = bool(np.all(np.abs(f.ne - cam) <= reach))
-                for j, cut in enumerate(cuts):
-                    v = base + np.where(cut, CUT_SD_M**2, 0.0)
+            # the finds this frame shows if this hypothesis is right, and per find which blobs
+            # are where it would show: a find shown that no blob but j explains is missed by
+            # the detector (MISS_P) unless j is it
+            shown = [i for i, f in enumerate(finds) if np.all(np.abs(f.ne - cam) <= reach)]
+            near = np.zeros((len(shown), m), bool)
+            for a_, i in enumerate(shown):
+                base = cam_var + finds[i].var_ne + 2.0 * MATCH_SD_M**2
+                near[a_] = np.sum((at - finds[i].ne) ** 2 / base, axis=1) <= GATE_SHOWN**2
+            for j, cut in enumerate(cuts):
+                others = np.delete(near, j, axis=1).any(axis=1) if m > 1 else np.zeros(len(shown), bool)
+                missing = [i for a_, i in enumerate(shown) if not others[a_]]
+                # a new target: on the field's lattice of cell centres, this camera's error and
+                # one blob's between
+                v = cam_var + MATCH_SD_M**2 + np.where(cut, CUT_SD_M**2, 0.0)
+                r = at[j] - CELL_M * np.round(at[j] / CELL_M)
+                new_l[j] += (w / total_w * _gauss(r, v) * prior * MISS_P ** len(missing))
+                for i, f in enumerate(finds):
+                    v = cam_var + f.var_ne + 2.0 * MATCH_SD_M**2 + np.where(cut, CUT_SD_M**2, 0.0)
                     d = at[j] - f.ne
-                    norm = 1.0 / (2.0 * math.pi * math.sqrt(float(np.prod(v))))
                     q0 = float(np.sum(d * d / v))
                     qn = np.sum((d - _NEIGHBOURS) ** 2 / v, axis=1)
                     if q0 <= GATE**2 or float(qn.min()) <= GATE_OFF_CELL**2:
-                        same_l[j, i] += w / total_w * norm * ((1.0 - OFF_CELL) * math.exp(-0.5 * q0)
-                                                              + OFF_CELL / len(_NEIGHBOURS) * float(np.exp(-0.5 * qn).sum()))
-                    # a new target on the lattice point nearest it (as the find stands on one;
-                    # not on the find's own cell): far from every find as likely as near one
-                    lat = 2.0 * np.round(d / 2.0)
-                    q_new = float(qn.min()) if not lat.any() else float(np.sum((d - lat) ** 2 / v))
-                    other = norm * math.exp(-0.5 * q_new) * p_new / (1.0 - p_new)
-                    if shown and not np.any(np.sum((np.delete(at, j, axis=0) - f.ne) ** 2 / base, axis=1)
-                                            <= GATE_SHOWN**2):
-                        other *= MISS_P
-                    new_c[j] = max(new_c[j], other)
-            new_l += w / total_w * new_c
+                        fit = ((1.0 - OFF_CELL) * math.exp(-0.5 * q0)
+                               + OFF_CELL / len(_NEIGHBOURS) * float(np.exp(-0.5 * qn).sum()))
+                        same_l[j, i] += (w / total_w * _gauss(np.zeros(2), v) * fit
+                                         * MISS_P ** (len(missing) - (i in missing)))
         with np.errstate(divide="ignore"):
             same = np.where(same_l > 0, np.log(same_l), -1e9)
             new = np.maximum(np.log(new_l), -1e8)
@@ -289,3 +295,8 @@ class TeamFoundTargets(FoundTargets):
             ne = np.asarray(camera_ne, dtype=float) + np.asarray(b.offset_ne(height))
             self.team.add(TeamFind(self.vehicle, float(t), ne, np.diag(np.asarray(cov_ne)) + b.sd_m**2,
                                    (int(cell[0]), int(cell[1]))))
+
+
+def _gauss(r: np.ndarray, v: np.ndarray) -> float:
+    """The density of an axis-aligned Gaussian with variances v at r."""
+    return float(np.exp(-0.5 * np.sum(r * r / v)) / (2.0 * math.pi * math.sqrt(float(np.prod(v)))))
