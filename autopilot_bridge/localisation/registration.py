@@ -24,6 +24,7 @@ from ..link.connection import VehicleLink
 from ..service.search_data import SearchSpec
 from .edges import EdgeSighting, border_ne, half_footprint_m
 from .estimator import GpsEstimator
+from .team_finds import TeamFoundTargets
 from .telemetry import READING_SD_M, TelemetryIntake
 
 log = logging.getLogger(__name__)
@@ -233,10 +234,19 @@ class Registration:
             if i is None:
                 rest.append(b)
                 continue
-            on = self.found.cell_of(i)
-            if on is None:  # its cell unsure: registered by the lattice odds now, as any target
-                rest.append(b)
-                continue
+            team = isinstance(self.found, TeamFoundTargets) and self.found.is_team(i)
+            if team:
+                # a teammate's find (localisation.team_finds): where its finder placed it, fused
+                # with the finder's variance added, gated on the two estimates' together
+                if not self.found.register_landmarks:
+                    continue
+                at, var = self.found.team_landmark(i)
+            else:
+                on = self.found.cell_of(i)
+                if on is None:  # its cell unsure: registered by the lattice odds now, as any target
+                    rest.append(b)
+                    continue
+                at, var = cell_to_ned(np.array(on)), np.zeros(2)
             # a blob cut by the frame's edge: the axis across the cut is left out (its centre
             # 0.2-0.45 m off), the other kept (rendered cut cows: 0.14 m rms along it, as
             # inside the frame). Cut blobs had been left out whole: flight seed 69 then missed
@@ -244,14 +254,23 @@ class Registration:
             axes = [i for i, cut in enumerate(b.cut_axes) if not cut]
             if not axes:
                 continue
-            z = (cell_to_ned(np.array(on)) - off)[axes]
+            z = (at - off)[axes]
+            sd = math.sqrt(KNOWN_SD_M**2 + float(np.max(var[axes])))
             post = self.estimator.posterior(t)
             r = z - post.mean_ned[axes]
-            cov = post.horizontal_cov[np.ix_(axes, axes)] + np.eye(len(axes)) * KNOWN_SD_M**2
-            if float(r @ np.linalg.solve(cov, r)) > KNOWN_GATE**2:
+            cov = post.horizontal_cov[np.ix_(axes, axes)] + np.eye(len(axes)) * sd**2
+            q = float(r @ np.linalg.solve(cov, r))
+            if team and q > EDGE_DOUBT**2:
+                # matched a cell off (`TeamFoundTargets.assign_team`: this frame on the wrong
+                # lattice point): the split of the GPS reading is doubted, as an edge's, so the
+                # landmark moves the estimate to it, not averaged with the wrong frame
+                self.estimator.doubt_split(float(np.abs(r).max()), tuple(axes))
+            elif q > KNOWN_GATE**2:
                 continue  # not where that target could be seen from: a wrong match
-            self.estimator.observe_position(t, z, KNOWN_SD_M, tuple(axes))
+            self.estimator.observe_position(t, z, sd, tuple(axes))
             used += 1
+            if team:
+                self.found.team.count(self.found.team.registrations, self.found.vehicle)
         return used, rest
 
 

@@ -53,6 +53,7 @@ from policy.base import Observation
 from policy.team.planner import TeamBeliefPlanner
 from sim.gridworld import DELTAS, GridConfig, cell_to_ned
 
+from ..localisation.team_finds import TeamFinds, TeamFoundTargets
 from .pilot import DECISION_DEADLINE_S
 from .policy_service import HOLD, PolicyService
 
@@ -144,6 +145,10 @@ class FleetLog:
     #: per round: every member's cell (vehicle -> [x, y])
     cells: list[dict[int, list[int]]] = field(default_factory=list)
     stop_cause: str | None = None
+    #: the shared finds (recorded as `TeamFinds.to_dict`: each find, and per vehicle the
+    #: teammates' finds it saw, those under its camera, and its registrations on them); None:
+    #: finds not shared
+    team_finds: TeamFinds | None = None
 
     def to_dict(self) -> dict[str, Any]:
         inf = float("inf")
@@ -154,7 +159,8 @@ class FleetLog:
                 else round(self.min_setpoint_separation_m, 3),
                 "min_separation_m": None if self.min_separation_m == inf else round(self.min_separation_m, 3),
                 "lost": {str(k): {"round": r, "why": w} for k, (r, w) in self.lost.items()},
-                "cells": [{str(k): v for k, v in c.items()} for c in self.cells], "stop_cause": self.stop_cause}
+                "cells": [{str(k): v for k, v in c.items()} for c in self.cells], "stop_cause": self.stop_cause,
+                "team_finds": None if self.team_finds is None else self.team_finds.to_dict()}
 
 
 class SeparationCheck:
@@ -214,9 +220,11 @@ class TeamRound:
     arrive runs the team planner for everyone, the separation check, and wakes the others."""
 
     def __init__(self, n: int, planner: FleetPlanner, grid: GridConfig,
-                 separation: SeparationCheck | None = None, round_timeout_s: float = 30.0) -> None:
+                 separation: SeparationCheck | None = None, round_timeout_s: float = 30.0,
+                 share_finds: bool = True) -> None:
         """n vehicles; their services are attached (`attach`) once built, their frame sources
-        being this round's GuardedFrames."""
+        being this round's GuardedFrames. share_finds: every vehicle's finds are landmarks for
+        the others (`attach`; False: each knows its own only, as before issue 29's fix)."""
         self.services: list[PolicyService] = []
         self.planner, self.grid = planner, grid
         self.sep = separation or SeparationCheck()
@@ -235,11 +243,27 @@ class TeamRound:
         self.stop_cause: str | None = None
         self.finished = False
         self._cv = threading.Condition()
+        #: the team's finds, shared by the vehicles' found-targets memories (None: not shared)
+        self.team_finds: TeamFinds | None = TeamFinds() if share_finds else None
+        self.log.team_finds = self.team_finds
 
     def attach(self, services: list[PolicyService]) -> None:
+        """The vehicles' services, in vehicle order. With shared finds, each service's
+        found-targets memory becomes a `TeamFoundTargets` on the team's registry (its
+        registration reads the same one): a teammate's find is then no new find to it, and a
+        landmark for its position (autopilot_bridge.localisation.team_finds says why). Done
+        before any search starts, so nothing is in the memories it replaces."""
         if len(services) != self.n:
             raise ValueError(f"{len(services)} services for a team of {self.n}")
         self.services = list(services)
+        if self.team_finds is None:
+            return
+        for i, s in enumerate(self.services):
+            if len(s.found):
+                raise ValueError(f"vehicle {i} has found targets before its team's search started")
+            shared = TeamFoundTargets(s.spec, s.estimator, s.intake, self.team_finds, i, s.det.fov_deg)
+            shared.camera_height = s.found.camera_height
+            s.found = s.registration.found = shared
 
     # -- vehicle threads ----------------------------------------------------------------
     def check(self, i: int) -> None:

@@ -28,8 +28,21 @@ def register(app: typer.Typer) -> None:
         policy: str | None = typer.Option(None, "--policy", help="The policy that flies (default: the best shipped one)."),
         on_abort: AbortAction = typer.Option(
             AbortAction.rtl, "--on-abort", help="What the vehicle does when the flight fails or is interrupted."),
+        agents: int = typer.Option(
+            1, "--agents", min=1, max=8,
+            help="2 or more: instead, N vehicles search one field together (our SITL fleet, one companion, one "
+                 "shared belief; docs/fleet_flight.md): the tracks' picture and a report in OUT/fleet/."),
+        width: int | None = typer.Option(None, "--width", min=2, help="The fleet's field width (--agents; default 10)."),
+        height: int | None = typer.Option(None, "--height", min=2, help="The fleet's field height (--agents; default 10)."),
+        targets: int | None = typer.Option(None, "--targets", min=1, help="The fleet's targets (--agents; default 5)."),
     ) -> None:
         """Evaluate the policies, then fly a search on the simulated vehicle; write a report."""
+        if agents > 1:
+            _fleet_demo(agents, seed, out, speedup, policy, on_abort, width, height, targets)
+            return
+        if (width, height, targets) != (None, None, None):
+            raise typer.BadParameter("the field's size is the fleet demo's (--agents 2 or more); the lone demo "
+                                     "flies the paper's 10 x 10 / 5", param_hint="--width/--height/--targets")
         from policy.baselines import known_policies
         from policy.evaluation import run_eval
         from policy.nn import shipped_checkpoint
@@ -67,3 +80,31 @@ def register(app: typer.Typer) -> None:
                 typer.echo(f"error: the flight stopped ({r['error']}); the vehicle was sent to {on_abort.value}: "
                            f"{r['outcome']['touchdown']}", err=True)
                 raise typer.Exit(code)
+
+
+def _fleet_demo(agents: int, seed: int, out: Path, speedup: float, policy: str | None, on_abort: AbortAction,
+                width: int | None, height: int | None, targets: int | None) -> None:
+    """`demo --agents N`: the fleet searches one field (missions.fleet_demo); OUT/fleet/report.md."""
+    import sys
+
+    from missions.fleet_demo import fly_fleet_demo
+    from sim.gridworld import ConfigError, GridConfig
+
+    if policy is not None:
+        raise typer.BadParameter("a fleet flies the team belief planner (for now)", param_hint="--policy")
+    if on_abort == AbortAction.hold:
+        raise typer.BadParameter("a fleet lands where it is on an abort (rtl, the default, is flown as land: "
+                                 "RTL would cross the others' legs)", param_hint="--on-abort")
+    try:
+        grid = GridConfig(width=width or 10, height=height or 10, n_targets=targets or 5)
+    except ConfigError as e:
+        raise typer.BadParameter(str(e)) from e
+    command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["demo"] else f"uavsearch demo --agents {agents}"
+    r = fly_fleet_demo(out / "fleet", agents, grid, seed, speedup, command, echo=typer.echo)
+    typer.echo(f"fleet: {r['moves']} rounds (team grid world {r['grid_makespan']}), {r['truly_found']}/{r['targets']} "
+               f"targets found (truth), {r['believed_found']} believed; {r['separation_refused']} setpoints refused, "
+               f"least {r['min_true_distance_3d_m']} m between airborne vehicles; {r['simulated_s']:.0f} s simulated "
+               f"in {r['wall_s']:.0f} s")
+    typer.echo(f"fleet report: {(out / 'fleet').resolve()}/report.md (open this first), fleet.png")
+    if r["outcome"] != 0:
+        raise typer.Exit(int(r["outcome"]))
