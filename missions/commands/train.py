@@ -211,7 +211,7 @@ def _train_team(out: Path, grid: GridConfig, agents: list[int], init: Path | Non
     torch.set_num_threads(threads or 1)
     over = {k: v for k, v in (("episodes", episodes), ("epochs", epochs), ("beta0", beta0)) if v is not None}
     try:
-        dc = TeamDaggerConfig(iterations=max(iterations, 1), chunks=max(workers, 1), **over)
+        dc = TeamDaggerConfig(iterations=iterations, chunks=max(workers, 1), **over)
         mappo = {} if mappo_episodes is None else {"episodes": mappo_episodes}
         tc = TeamTrainConfig(dagger=dc, mappo_updates=mappo_updates, mappo=mappo, seed=seed, team_planes=team_planes,
                              **({"val_episodes": val_episodes} if val_episodes else {}))

@@ -101,15 +101,66 @@ def team_logits(model: SearchNet, planes: np.ndarray, positions: np.ndarray, val
     return out
 
 
+class AgentLoops:
+    """The paper's loop guard (policy.loops.LoopGuard) for each agent of a team: a queue of the
+    agent's last `window` cells; a cell occurring alpha times in it starts the fallback, the
+    vote towards cells no agent of the team has stood on (the team's positions are known to
+    all), until a move lands on such a cell. Why: a greedy network can cycle where the belief
+    stops changing (one agent of a team oscillating between two cells was the longest tail in
+    validation); the fallback only reorders the agent's preferences, so the separation still
+    decides the joint move."""
+
+    def __init__(self, cfg: GridConfig, n: int, k: int, seed: int, alpha: int = 3, window: int = 40) -> None:
+        self.n, self.k, self.alpha, self.window = n, k, alpha, window
+        self.rng = np.random.default_rng([seed, 0x100F, k])
+        self.queue = np.full((n * k, window, 2), -1, np.int64)
+        self.qlen = np.zeros(n * k, np.int64)
+        self.visited = np.zeros((n, cfg.height, cfg.width), bool)
+        self.fallback = np.zeros(n * k, bool)
+        self.count = np.zeros(n * k, np.int64)
+        self.rows = np.arange(n * k)
+        self.episode = np.repeat(np.arange(n), k)
+
+    def __call__(self, prefs: np.ndarray, positions: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """prefs (n, N, A) -> the same with each agent in the fallback preferring its vote."""
+        from ..loops import vote
+
+        pos = np.asarray(positions, np.int64).reshape(-1, 2)
+        act, rows, e = np.repeat(np.asarray(active, bool), self.k), self.rows, self.episode
+        new_cell = ~self.visited[e, pos[:, 1], pos[:, 0]]
+        self.visited[e[act], pos[act, 1], pos[act, 0]] = True
+        leave = act & self.fallback & new_cell
+        self.fallback[leave] = False
+        self.qlen[leave] = 0
+        q = act & ~self.fallback
+        self.queue[rows[q], self.qlen[q] % self.window] = pos[q]
+        self.qlen[q] += 1
+        filled = np.arange(self.window)[None, :] < np.minimum(self.qlen, self.window)[:, None]
+        same = np.all(self.queue == pos[:, None, :], axis=-1) & filled
+        trig = q & (same.sum(axis=1) >= self.alpha)
+        self.count[trig] += 1
+        self.fallback |= trig
+        fb = np.flatnonzero(act & self.fallback)
+        if fb.size == 0:
+            return prefs
+        a = vote(pos[fb], self.visited[e[fb]], self.rng)
+        out = prefs.reshape(self.n * self.k, -1).copy()
+        ok = a < out.shape[1]
+        out[fb[ok], a[ok]] += 1e6  # nothing left unvisited (Action.N): the network's own choice
+        return out.reshape(prefs.shape)
+
+
 class TeamSearchNet(TeamPolicy):
     """The decentralised team searchnet (module docstring). temperature > 0 samples each agent's
-    preferences from softmax(logits / T) (seeded by reset), for exploration in training."""
+    preferences from softmax(logits / T) (seeded by reset), for exploration in training.
+    loop_guard (None: on for static targets, as for today's searchnet): AgentLoops."""
 
     name = "searchnet"
 
     def __init__(self, model: SearchNet, temperature: float = 0.0, comms: CommsModel | None = None,
-                 single: Any = None) -> None:
+                 single: Any = None, loop_guard: bool | None = None) -> None:
         """single: the policy run at N = 1 for a single-agent network (today's `searchnet`)."""
+        self.loop_guard = loop_guard
         if temperature < 0:
             raise ValueError(f"temperature must be >= 0 (got {temperature})")
         if model.cfg.level_planes or model.cfg.privileged_channels:
@@ -136,6 +187,8 @@ class TeamSearchNet(TeamPolicy):
             self.single.reset(cfg, n, seed)
             return
         self.shared = SharedBelief(cfg, n, n_agents, comms=self.comms, seed=seed)
+        guard = (not cfg.moving) if self.loop_guard is None else self.loop_guard
+        self.loops = AgentLoops(cfg, n, n_agents, seed) if guard else None
         self._brow = np.stack([self.shared.row(i) for i in range(n_agents)], axis=1)  # (n, N)
 
     def inputs(self, obs: TeamObservation) -> np.ndarray:
@@ -162,6 +215,8 @@ class TeamSearchNet(TeamPolicy):
             return np.asarray(self.single.act(one), np.int64)[:, None]
         valid = np.asarray(obs.valid)
         z = self.preferences(obs)[..., : valid.shape[-1]]
+        if self.loops is not None:
+            z = self.loops(z, obs.positions, obs.active)
         return separate(np.asarray(obs.positions, np.int64), z, valid)
 
 

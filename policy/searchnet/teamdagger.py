@@ -55,7 +55,7 @@ class TeamDaggerConfig:
     max_steps_factor: float = 1.5
 
     def __post_init__(self) -> None:
-        if self.iterations < 1 or self.episodes < 1 or self.chunks < 1 or self.epochs < 1 or self.batch < 1 \
+        if self.iterations < 0 or self.episodes < 1 or self.chunks < 1 or self.epochs < 1 or self.batch < 1 \
                 or self.fit_states < 1:
             raise ValueError(f"TeamDaggerConfig needs positive counts (got {self})")
         if not (0.0 <= self.beta0 <= 1.0 and 0.0 <= self.beta_decay <= 1.0):

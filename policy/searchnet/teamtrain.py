@@ -51,6 +51,8 @@ class TeamTrainConfig:
             raise ValueError(f"TeamTrainConfig.team_planes must be 1 or 2 (got {self.team_planes})")
         if self.mappo_updates < 0 or self.val_episodes < 1:
             raise ValueError(f"TeamTrainConfig: mappo_updates >= 0, val_episodes >= 1 (got {self})")
+        if self.dagger.iterations == 0 and self.mappo_updates == 0:
+            raise ValueError("TeamTrainConfig: no DAgger iteration and no MAPPO update: nothing to train")
 
     def to_dict(self) -> dict:
         return {"dagger": self.dagger.to_dict(), "mappo_updates": self.mappo_updates, "mappo": dict(self.mappo),
@@ -112,7 +114,8 @@ def train_team(out: Path, settings: list[tuple[GridConfig, int]], init: Path, tc
         f"{c['grid']} x{c['agents']} {c['makespan']:.2f}/{c['planner']:.2f}" for c in val["cells"]))
     save_searchnet(out / "searchnet.pt", model, settings=grids, train=tc.to_dict(), seed=tc.seed, init=str(init),
                    stage="init", metrics=val)
-    run_team_dagger(model, settings, tc.dagger, workers, lambda i, s, m: record("dagger", s, m))
+    if tc.dagger.iterations:
+        run_team_dagger(model, settings, tc.dagger, workers, lambda i, s, m: record("dagger", s, m))
     if tc.mappo_updates:
         from .mappo import MappoConfig, run_mappo
 

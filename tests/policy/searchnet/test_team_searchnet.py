@@ -55,16 +55,17 @@ def test_widened_network_decides_as_before_and_the_planes_say_where_teammates_ar
 def test_tiny_team_dagger_trains_and_flies_without_conflicts(tmp_path):
     torch.set_num_threads(1)
     init = shipped_checkpoint("searchnet_static_random")
-    tc = TeamTrainConfig(dagger=TeamDaggerConfig(iterations=2, episodes=6, epochs=1, beta0=0.5), val_episodes=6)
+    tc = TeamTrainConfig(dagger=TeamDaggerConfig(iterations=2, episodes=4, epochs=1, beta0=0.5), val_episodes=4,
+                         team_planes=2, mappo_updates=1, mappo={"episodes": 4, "critic_warmup": 0, "epochs": 1})
     summary = train_team(tmp_path, [(SMALL, 2)], init, tc, log=lambda *_: None)
-    assert [h["stage"] for h in summary["history"]] == ["init", "dagger", "dagger"]
-    assert all(h["new_states"] > 0 and 0 <= h["train_acc"] <= 1 for h in summary["history"][1:])
-    assert (tmp_path / "searchnet.pt").is_file()
+    assert [h["stage"] for h in summary["history"]] == ["init", "dagger", "dagger", "mappo"]
+    assert all(h["new_states"] > 0 and 0 <= h["train_acc"] <= 1 for h in summary["history"][1:3])
+    assert summary["history"][3]["6x6x2_kept"] > 0.5  # separation replaced few sampled moves
     pol = make_team_policy("searchnet", cfg=SMALL, checkpoint=tmp_path / "searchnet.pt")
-    assert isinstance(pol, TeamSearchNet) and pol.model.cfg.team_planes == 1
-    ep = sample_episodes(SMALL, 40, 8)
+    assert isinstance(pol, TeamSearchNet) and pol.model.cfg.team_planes == 2
+    ep = sample_episodes(SMALL, 20, 8)
     world = TeamGridWorld(ep, team_starts(ep, 2), 8)
-    pol.reset(SMALL, 40, 2, 8)
+    pol.reset(SMALL, 20, 2, 8)
     while not world.done.all():
         a = pol.act(team_observe(world))
         world.step(a)
