@@ -34,7 +34,7 @@ def register(app: typer.Typer) -> None:
             None, "--field", help="A polygon field (field.json from `uavsearch field`): the grid is its grid, "
             "targets and moves on its searchable cells (--width/--height are ignored)."),
         agents: int = typer.Option(1, "--agents", min=1, help="Team size N (issue 29, docs/fleet.md): N UAVs "
-                                   "in each episode; policies: belief, belief-independent, lawnmower-strips."),
+                                   "in each episode; policies: belief, belief-independent, lawnmower-strips, searchnet."),
         comms_loss: float = typer.Option(0.0, "--comms-loss", help="With --agents: share of messages lost."),
         comms_delay: int = typer.Option(0, "--comms-delay", min=0, help="With --agents: message delay (steps)."),
         comms_history: int = typer.Option(1, "--comms-history", min=1,
@@ -47,7 +47,10 @@ def register(app: typer.Typer) -> None:
         from policy.evaluation import run_eval
 
         if agents > 1:
-            _team_eval(policy, grid, episodes, seed, agents, comms_loss, comms_delay, comms_history, as_json)
+            if checkpoint is not None and not checkpoint.is_file():
+                raise typer.BadParameter(f"no checkpoint file at {checkpoint}", param_hint="--checkpoint")
+            _team_eval(policy, grid, episodes, seed, agents, comms_loss, comms_delay, comms_history, as_json,
+                       checkpoint)
             return
         known = known_policies()
         unknown = [p for p in policy if p not in known]
@@ -75,13 +78,15 @@ def register(app: typer.Typer) -> None:
 
 
 def _team_eval(policy: list[str], grid: GridConfig, episodes: int, seed: int, agents: int, loss: float,
-               delay: int, history: int, as_json: bool) -> None:
-    """`eval --agents N`: the team policies on the same episodes (policy.team.quality)."""
+               delay: int, history: int, as_json: bool, checkpoint: Path | None = None) -> None:
+    """`eval --agents N`: the team policies on the same episodes (policy.team.quality);
+    checkpoint: the team searchnet's (default: the shipped one for the grid)."""
     from policy.belief.shared import CommsModel
     from policy.team.quality import run_team_eval
 
     try:
-        doc = run_team_eval(policy, grid, episodes, seed, agents, CommsModel(delay=delay, loss=loss, history=history))
+        doc = run_team_eval(policy, grid, episodes, seed, agents, CommsModel(delay=delay, loss=loss, history=history),
+                            checkpoint)
     except ValueError as e:
         raise typer.BadParameter(str(e)) from e
     if as_json:

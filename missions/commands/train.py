@@ -90,6 +90,13 @@ def register(app: typer.Typer) -> None:
             None, "--mask-class", help="searchnet: train on random masked fields of this class (repeat for "
             "several; sim.gridworld.mask_fields: convex, L, holes, strips)."),
         mask_area: int = typer.Option(100, "--mask-area", min=4, help="searchnet: searchable cells per random field."),
+        agents: list[int] | None = typer.Option(
+            None, "--agents", help="searchnet: a decentralised team network (issue 29, docs/fleet.md), DAgger from "
+            "the team planner at these team sizes (repeat: --agents 2 --agents 4), warm-started from --init or "
+            "the shipped single-agent network of the grid; --ppo-updates: MAPPO-style updates after it (default 0)."),
+        team_planes: int = typer.Option(1, "--team-planes", min=1, max=2,
+                                        help="searchnet --agents: teammates' input planes, 1 their cells, 2 also "
+                                             "the cells another agent is nearer (the team's regions)."),
         *,
         grid: GridConfig,
     ) -> None:
@@ -97,6 +104,16 @@ def register(app: typer.Typer) -> None:
         reward in the grid world set by the grid options (OUT/drqn.pt)."""
         if out.exists() and not out.is_dir():
             raise typer.BadParameter(f"{out} is a file; --out names a run directory", param_hint="--out")
+        if model is Model.searchnet and agents:
+            _train_team(out, grid, agents, init, seed, threads, workers, dagger_iterations,
+                        dagger_episodes if dagger_episodes != 400 else None, epochs if epochs != 50 else None,
+                        val_episodes if val_episodes != 400 else None, beta0 if beta0 != 1.0 else None,
+                        ppo_updates or 0, ppo_episodes if ppo_episodes != 128 else None,
+                        bool(levels > 1 or field is not None or mask_class or gps_sigma or resume), team_planes)
+            return
+        if agents:
+            raise typer.BadParameter("--agents trains the team search network (--model searchnet)",
+                                     param_hint="--agents")
         if model is Model.drqn:
             _train_drqn(out, episodes, seed, resume, threads, grid)
             return
@@ -165,6 +182,45 @@ def _train_searchnet(out: Path, grid: GridConfig, seed: int, resume: bool, threa
     except CheckpointError as e:
         raise typer.BadParameter(str(e), param_hint="--resume") from e
     typer.echo(f"{path}: the best search network (evaluate: uavsearch eval --policy searchnet --checkpoint {path})")
+
+
+def _train_team(out: Path, grid: GridConfig, agents: list[int], init: Path | None, seed: int, threads: int | None,
+                workers: int, iterations: int, episodes: int | None, epochs: int | None, val_episodes: int | None,
+                beta0: float | None, mappo_updates: int, mappo_episodes: int | None, unsupported: bool,
+                team_planes: int = 1) -> None:
+    """`train --model searchnet --agents N`: policy.searchnet.teamtrain (the given options
+    override TeamDaggerConfig's defaults, which are sized for a shared CPU)."""
+    import torch
+
+    from policy.nn import CheckpointError, shipped_checkpoint
+    from policy.searchnet.teamdagger import TeamDaggerConfig
+    from policy.searchnet.teamtrain import TeamTrainConfig, train_team
+
+    if unsupported:
+        raise typer.BadParameter("the team network trains at one height on the whole grid with exact positions, "
+                                 "from a fresh run: not with --levels, --field, --mask-class, --gps-sigma or "
+                                 "--resume", param_hint="--agents")
+    if min(agents) < 1 or grid.moving:
+        raise typer.BadParameter(f"--agents takes team sizes >= 1 on static targets (got {agents}, "
+                                 f"motion {grid.motion})", param_hint="--agents")
+    if init is None:
+        sized = shipped_checkpoint(f"searchnet_{grid.motion}_{grid.distribution}_{grid.width}x{grid.height}")
+        init = sized if sized.is_file() else shipped_checkpoint(f"searchnet_{grid.motion}_{grid.distribution}")
+        if not init.is_file():
+            init = shipped_checkpoint("searchnet_static_random")
+    torch.set_num_threads(threads or 1)
+    over = {k: v for k, v in (("episodes", episodes), ("epochs", epochs), ("beta0", beta0)) if v is not None}
+    try:
+        dc = TeamDaggerConfig(iterations=iterations, chunks=max(workers, 1), **over)
+        mappo = {} if mappo_episodes is None else {"episodes": mappo_episodes}
+        tc = TeamTrainConfig(dagger=dc, mappo_updates=mappo_updates, mappo=mappo, seed=seed, team_planes=team_planes,
+                             **({"val_episodes": val_episodes} if val_episodes else {}))
+        summary = train_team(out, [(grid, k) for k in dict.fromkeys(agents)], init, tc, workers, log=typer.echo)
+    except (ValueError, CheckpointError) as e:
+        raise typer.BadParameter(str(e), param_hint="--agents") from e
+    typer.echo(f"{out / 'searchnet.pt'}: the best team search network ({summary['best']['stage']}, validation "
+               f"makespan / team planner {summary['best']['score']:.4f}; evaluate: uavsearch eval --agents N "
+               f"-p searchnet --checkpoint {out / 'searchnet.pt'})")
 
 
 #: searchnet with levels: one-hot planes for L_max = 3 (GridConfig allows 1..3), so one network

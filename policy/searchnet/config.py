@@ -23,6 +23,11 @@ class SearchNetConfig:
     #: before altitude levels): a network with L_max = 3 serves every field with levels 1..3
     #: (climb and descend are masked where the field has no level to go to)
     level_planes: int = 0
+    #: planes of the teammates (issue 29, policy.searchnet.team.teammates_planes): 1: a plane
+    #: with 1 on every other agent's cell; 2: also 1 on the cells some other agent is strictly
+    #: nearer (Manhattan: the team's regions); all 0 for a lone agent. 0: none, the
+    #: single-agent networks from before teams
+    team_planes: int = 0
 
     def __post_init__(self) -> None:
         for name in ("in_channels", "conv1", "conv2", "hidden", "n_actions"):
@@ -32,6 +37,8 @@ class SearchNetConfig:
             raise ValueError(f"SearchNetConfig.privileged_channels must be >= 0 (got {self.privileged_channels})")
         if self.level_planes < 0:
             raise ValueError(f"SearchNetConfig.level_planes must be >= 0 (got {self.level_planes})")
+        if self.team_planes not in (0, 1, 2):
+            raise ValueError(f"SearchNetConfig.team_planes must be 0, 1 or 2 (got {self.team_planes})")
         if self.level_planes and self.n_actions < 7:
             raise ValueError(f"SearchNetConfig: level planes need the 7 actions with climb and descend "
                              f"(got n_actions {self.n_actions})")
@@ -39,17 +46,20 @@ class SearchNetConfig:
             raise ValueError(f"SearchNetConfig.local must be a positive odd window side (got {self.local})")
 
     def to_dict(self) -> dict:
-        """level_planes appears only where it is used, so a network without levels writes the
-        same document as before they existed."""
+        """level_planes and team_planes appear only where they are used, so a network without
+        levels or teammates writes the same document as before they existed."""
         d = asdict(self)
         if not self.level_planes:
             d.pop("level_planes")
+        if not self.team_planes:
+            d.pop("team_planes")
         return d
 
     @property
     def field_planes(self) -> int:
-        """Planes per field cell before the egocentric crop adds its own: belief, level, truth."""
-        return self.in_channels + self.level_planes + self.privileged_channels
+        """Planes per field cell before the egocentric crop adds its own: belief, level,
+        teammates, truth."""
+        return self.in_channels + self.level_planes + self.team_planes + self.privileged_channels
 
     @classmethod
     def from_dict(cls, d: dict) -> SearchNetConfig:

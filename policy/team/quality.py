@@ -37,11 +37,15 @@ LOSSY_REPEAT = CommsModel(delay=2, loss=0.3, history=4, beacons=False)
 
 
 def team_cell(policy: str, cfg_dict: dict, episodes: int, seed: int, n_agents: int,
-              comms: dict | None = None) -> dict[str, Any]:
-    """One (policy, setting, N, link) cell: the team columns. Plain arguments, for fan_out."""
+              comms: dict | None = None, checkpoint: str | None = None) -> dict[str, Any]:
+    """One (policy, setting, N, link) cell: the team columns. Plain arguments, for fan_out.
+    checkpoint: the network of `searchnet` (None: the shipped team network for the grid)."""
     cfg = GridConfig.from_dict(cfg_dict)
     t0 = time.perf_counter()
-    pol = make_team_policy(policy, comms=None if comms is None else CommsModel(**comms))
+    extra: dict[str, Any] = {"cfg": cfg} if policy == "searchnet" else {}
+    if checkpoint is not None:
+        extra["checkpoint"] = checkpoint
+    pol = make_team_policy(policy, comms=None if comms is None else CommsModel(**comms), **extra)
     r = evaluate_team(pol, cfg, episodes, seed, n_agents, progress=False)
     return r.columns | {"seconds": round(time.perf_counter() - t0, 1)}
 
@@ -59,18 +63,20 @@ def single_cell(cfg_dict: dict, episodes: int, seed: int) -> dict[str, Any]:
 
 
 def run_team_eval(policies: list[str], cfg: GridConfig, episodes: int, seed: int, n_agents: int,
-                  comms: CommsModel | None = None) -> dict[str, Any]:
+                  comms: CommsModel | None = None, checkpoint: str | Path | None = None) -> dict[str, Any]:
     """`eval --agents N`: every named team policy on the same episodes; today's Table I fields
-    (with the makespan as the moves) and mean_makespan per policy."""
+    (with the makespan as the moves) and mean_makespan per policy. checkpoint: searchnet's."""
     unknown = [p for p in policies if p not in TEAM_POLICIES]
     if unknown:
         raise ValueError(f"unknown team policy {', '.join(unknown)}; with --agents: {', '.join(TEAM_POLICIES)}")
     out = {}
     for name in dict.fromkeys(policies):
         out[name] = team_cell(name, cfg.to_dict(), episodes, seed, n_agents,
-                              None if comms is None else dataclasses.asdict(comms))
+                              None if comms is None else dataclasses.asdict(comms),
+                              None if checkpoint is None or name != "searchnet" else str(checkpoint))
+    extra = {} if checkpoint is None or "searchnet" not in policies else {"checkpoint": str(checkpoint)}
     return stamp(cfg.to_dict(), seed, episodes=episodes, agents=n_agents,
-                 comms=dataclasses.asdict(comms or CommsModel()), policies=out)
+                 comms=dataclasses.asdict(comms or CommsModel()), policies=out, **extra)
 
 
 def _links(n_agents: int) -> list[tuple[str, str, CommsModel | None]]:
