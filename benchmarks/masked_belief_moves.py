@@ -6,7 +6,9 @@ Each move of an episode is one of:
 - new: before that, its view showed at least one never-seen searchable cell;
 - dead: before that, it showed nothing new (travel to a goal over seen ground: a return to
   left-over cells, or a crossing).
-Also: revisits (moves onto a cell the agent stood on before, search phase), and the
+Also: cover, the 3 x 3 views a greedy set cover needs to show the whole field (what the view
+alone costs, no travel; the oracle needs no view, so a field that needs more views per oracle
+move than the rectangle costs any view-based search more, whatever it plans). And: revisits (moves onto a cell the agent stood on before, search phase), and the
 left-over cells: cells first seen more than `late` moves after the agent first came within
 two cells of them (it passed them by and came back).
 
@@ -46,6 +48,29 @@ def _seen(visited: np.ndarray) -> np.ndarray:
 def _near(visited: np.ndarray) -> np.ndarray:
     """cells within Chebyshev distance 2 of a visited cell."""
     return _seen(_seen(visited))
+
+
+def view_cover(mask: np.ndarray) -> float:
+    """Mean number of 3 x 3 view positions a greedy set cover needs to show every searchable
+    cell of each field (n, h, w): the coverage cost of the view alone, no travel counted
+    (16 on the 10 x 10 rectangle, its optimum)."""
+    from policy.planner.planner import _window
+
+    n, h, w = mask.shape
+    left = mask.astype(np.float64)
+    k = np.zeros(n, np.int64)
+    rows = np.arange(n)
+    while left.any():
+        s = _window(left, 1)
+        s[~mask] = -1.0
+        idx = s.reshape(n, -1).argmax(axis=1)
+        k += left.reshape(n, -1).any(axis=1)
+        y, x = idx // w, idx % w
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                ok = (y + dy >= 0) & (y + dy < h) & (x + dx >= 0) & (x + dx < w)
+                left[rows[ok], (y + dy)[ok], (x + dx)[ok]] = 0.0
+    return float(k.mean())
 
 
 def run(mask: np.ndarray | None, w: int, h: int, fields: int, seed: int, params: PlannerParams,
@@ -91,6 +116,8 @@ def run(mask: np.ndarray | None, w: int, h: int, fields: int, seed: int, params:
     out["ratio"] = out["moves"] / float(optimal_lengths(ep).mean())
     out["leftover"] = float(left.sum() / fields)
     out["seen"] = float((ok & on).sum() / fields)
+    out["cover"] = view_cover(np.ascontiguousarray(on))
+    out["oracle"] = float(optimal_lengths(ep).mean())
     return out
 
 
@@ -110,10 +137,11 @@ def main() -> None:
             rows.append((f"{kind}, {'rotated' if rot else 'aligned'}", run(m, m.shape[2], m.shape[1], fields, seed, params)))
     print(f"{fields} fields, seed {seed}, {kw or 'defaults'}; {time.time() - t0:.0f} s")
     rect = rows[0][1]["ratio"]
-    print(f"{'field':18s} {'ratio':>6s} {'vs rect':>7s} {'moves':>6s} {'new':>6s} {'dead':>6s} {'tour':>6s} {'revisit':>7s} {'leftover':>8s} {'seen':>6s}")
+    print(f"{'field':18s} {'ratio':>6s} {'vs rect':>7s} {'moves':>6s} {'new':>6s} {'dead':>6s} {'tour':>6s} {'revisit':>7s} {'leftover':>8s} {'seen':>6s} {'cover':>6s} {'cover/oracle vs rect':>20s}")
     for name, r in rows:
         print(f"{name:18s} {r['ratio']:6.3f} {r['ratio'] / rect - 1:+7.1%} {r['moves']:6.1f} {r['new']:6.1f} {r['dead']:6.1f} {r['tour']:6.1f} {r['revisit']:7.1f} "
-              f"{r['leftover']:8.1f} {r['seen']:6.1f}")
+              f"{r['leftover']:8.1f} {r['seen']:6.1f} {r['cover']:6.1f} "
+              f"{r['cover'] / r['oracle'] / (rows[0][1]['cover'] / rows[0][1]['oracle']) - 1:+20.1%}")
 
 
 if __name__ == "__main__":
