@@ -171,7 +171,7 @@ def register(app: typer.Typer) -> None:
         if autopilot != Autopilot.ours:
             _real_autopilot(autopilot.value, autopilot_bin, instance, count, speedup, physics, origin, grid, seed,
                             target_step_s, field_edge, field_out, fence_radius, fence_alt, gcs_port_per_instance,
-                            key, tlog, duration, cell_m, camera_px)
+                            key, tlog, duration, cell_m, camera_px, one_field=one_field)
             return
         vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
         if vport is None:
@@ -328,9 +328,12 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
                     physics: Physics, origin, grid, seed: int, target_step_s: float, field_edge: bool,
                     field_out: Path, fence_radius: float, fence_alt: float, gcs_port_per_instance: bool,
                     key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float,
-                    camera_px: int = 50) -> None:
+                    camera_px: int = 50, one_field: bool = False) -> None:
     """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
-    physics, the field file pointing the companion at the binary's API link."""
+    physics, the field file pointing the companion at the binary's API link. With `--count N
+    --one-field` (ArduPilot): N binaries (instances I..I+N-1: their own JSON, API, camera and
+    GCS ports, SYSID_THISMAV I+1...), each flying a world of its own on the one episode from the
+    team grid world's start cell, all in this process; one field file each for `run --fleet`."""
     from missions.fieldfile import FieldSpec, write_field
     from missions.ports import udp_port_taken
     from sim.bridges.ardupilot_json import json_port
@@ -338,7 +341,11 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
     from sim.bridges.px4_hil import simulator_port
     from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
 
-    for bad, what, hint in ((count != 1, "one vehicle (--count 1)", "--count"),
+    fleet = count > 1
+    for bad, what, hint in ((fleet and not one_field, "one vehicle (--count 1), or a fleet on one field (--count N "
+                             "--one-field)", "--count"),
+                            (fleet and autopilot == "px4", "one vehicle (--count 1): a fleet of real autopilots is "
+                             "ArduPilot's so far (--autopilot ardupilot)", "--count"),
                             (physics != Physics.pybullet, "the PyBullet body (--physics pybullet)", "--physics"),
                             (key is not None, "no MAVLink signing of ours (set the autopilot's own)", "--signing-key-file"),
                             (tlog is not None, "no .tlog of ours (the autopilot logs itself)", "--tlog"),
@@ -349,57 +356,73 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
         find_binary(binary, ARDUPILOT_ENV if autopilot == "ardupilot" else PX4_ENV, autopilot)
     except AutopilotStartError as e:
         raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
-    n = instance
-    if autopilot == "ardupilot":
-        fence = {"FENCE_ENABLE": 1, "FENCE_TYPE": 3, "FENCE_RADIUS": fence_radius, "FENCE_ALT_MAX": fence_alt}
-        taken = udp_port_taken(json_port(n)) or udp_port_taken(14540 + n)
-        what = f"UDP {json_port(n)} (JSON physics) or {14540 + n} (API link)"
-    else:
-        fence = {"GF_MAX_HOR_DIST": fence_radius, "GF_MAX_VER_DIST": fence_alt}
-        import socket
+    starts = _team_starts(grid, seed, count) if fleet else None
+    worlds: list[AutopilotWorld] = []
+    paths: list[Path] = []
+    for k, n in enumerate(range(instance, instance + count)):
+        if autopilot == "ardupilot":
+            fence = {"FENCE_ENABLE": 1, "FENCE_TYPE": 3, "FENCE_RADIUS": fence_radius, "FENCE_ALT_MAX": fence_alt}
+            taken = udp_port_taken(json_port(n)) or udp_port_taken(14540 + n)
+            what = f"UDP {json_port(n)} (JSON physics) or {14540 + n} (API link)"
+        else:
+            fence = {"GF_MAX_HOR_DIST": fence_radius, "GF_MAX_VER_DIST": fence_alt}
+            import socket
 
-        with socket.socket() as s:
-            taken = s.connect_ex(("127.0.0.1", simulator_port(n))) == 0
-        what = f"TCP {simulator_port(n)} (PX4's simulator port)"
-    if taken:
-        raise typer.BadParameter(f"{what} of instance {n} is taken: is another sitl on instance {n} running?",
-                                 param_hint="--instance")
-    cfg = AutopilotWorldConfig(autopilot=autopilot, instance=n, speedup=speedup, binary=binary, home=origin, grid=grid,
-                               episode_seed=seed + n, seed=seed + n, camera=True, camera_px=camera_px,
-                               field_edge=field_edge,
-                               target_step_s=target_step_s, gcs_port=14550 + n if gcs_port_per_instance else 14550,
-                               params=fence)
-    world = AutopilotWorld(cfg)
-    address = world.companion_address()
-    connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
-    write_field(field_out, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
+            with socket.socket() as s:
+                taken = s.connect_ex(("127.0.0.1", simulator_port(n))) == 0
+            what = f"TCP {simulator_port(n)} (PX4's simulator port)"
+        if taken:
+            raise typer.BadParameter(f"{what} of instance {n} is taken: is another sitl on instance {n} running?",
+                                     param_hint="--instance")
+        # a fleet's vehicles fly one episode (the seed's), each its own sensors (seed + n), as ours do
+        cfg = AutopilotWorldConfig(autopilot=autopilot, instance=n, speedup=speedup, binary=binary, home=origin,
+                                   grid=grid, episode_seed=seed if fleet else seed + n, seed=seed + n, camera=True,
+                                   camera_px=camera_px, field_edge=field_edge, target_step_s=target_step_s,
+                                   gcs_port=14550 + n if gcs_port_per_instance else 14550, params=fence,
+                                   spawn_cell=None if starts is None else starts[k])
+        world = AutopilotWorld(cfg)
+        worlds.append(world)
+        address = world.companion_address()
+        connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
+        fpath = field_out if not fleet else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
+        paths.append(fpath)
+        write_field(fpath, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
                                      autopilot=autopilot, camera=world.camera_address(),
-                                     launch_ne=tuple(float(v) for v in world.scene.spawn_ne)),
-                seed + n, sitl=cfg.to_dict())
-    typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
-    typer.echo(f"    companion           uavsearch run --field {field_out}   ({connect})")
-    if world.camera_address() is not None:
-        typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on UDP {cfg.camera_ports[0]} -> "
-                   f"{cfg.camera_ports[1]} (run --camera {world.camera_address()})")
-    typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
-               f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m")
+                                     launch_ne=tuple(float(v) for v in world.scene.spawn_ne),
+                                     team=count if fleet else None),
+                    seed + n, sitl=cfg.to_dict())
+        typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
+        typer.echo(f"    companion           uavsearch run --field {fpath}   ({connect})")
+        if world.camera_address() is not None:
+            typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on UDP {cfg.camera_ports[0]} -> "
+                       f"{cfg.camera_ports[1]} (run --camera {world.camera_address()})")
+        typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
+                   f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m"
+                   + ("" if starts is None else f"; starts on cell {tuple(starts[k])}"))
+    if fleet:
+        typer.echo(f"fleet              uavsearch run --fleet {' '.join(str(p) for p in paths)}")
 
     def terminate(_signum: int, _frame: object) -> None:
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, terminate)
+    started: list[AutopilotWorld] = []  # a world that fails to start has stopped itself
     try:
-        world.start()
-    except AutopilotStartError as e:
-        raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
-    try:
-        while world.process is not None and world.process.alive:
+        try:
+            for world in worlds:
+                world.start()
+                started.append(world)
+        except AutopilotStartError as e:
+            raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
+        while all(w.process is not None and w.process.alive for w in worlds):
             time.sleep(0.2)
-            if duration is not None and world.t >= duration:
+            if duration is not None and min(w.t for w in worlds) >= duration:
                 break
-        if world.process is not None and not world.process.alive:
-            typer.echo(f"error: {autopilot} exited:\n{world.process.tail()}", err=True)
+        for w in worlds:
+            if w.process is not None and not w.process.alive:
+                typer.echo(f"error: {autopilot} instance {w.cfg.instance} exited:\n{w.process.tail()}", err=True)
     except KeyboardInterrupt:
         pass
     finally:
-        world.stop()
+        for w in started:
+            w.stop()

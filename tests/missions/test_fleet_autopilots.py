@@ -1,0 +1,46 @@
+"""Issue 29's fleet on real autopilots: two ArduCopter SITL binaries (their own instances,
+ports and SYSID_THISMAV), each flying a world of its own on one episode through the JSON
+physics bridge, one fleet companion flying both over their own links in ArduPilot's dialect.
+Run only where the binary is (ARDUPILOT_SITL names it); CI has none."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+from missions.fleet_trial import fly_fleet_trial
+from sim.gridworld import GridConfig
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.skipif(not os.environ.get("ARDUPILOT_SITL"), reason="ARDUPILOT_SITL (the arducopter binary) is not set")
+def test_two_arducopters_find_every_target_apart_and_land(tmp_path: Path) -> None:
+    """8 x 8 / 3, seed 0, at 10x (35 s here, loaded: ArduPilot waits for each physics reply, so
+    a slow bridge slows the simulated clock, it does not break the lockstep)."""
+    r = fly_fleet_trial(tmp_path, 2, GridConfig(width=8, height=8, n_targets=3), seed=0, speedup=10, plot=False,
+                        autopilot="ardupilot")
+    assert r["outcome"] == 0 and r["truly_found"] == 3 and r["believed_found"] == 3, r
+    assert r["separation_refused"] == 0 and not r["lost"], r
+    level = r["min_true_separation_same_height_m"]  # None: never within 1 m of one height in the air
+    assert (level is None or level >= 2.0) and r["min_true_distance_3d_m"] >= 2.0, r
+    assert r["armed_after"] == [False, False] and max(r["height_after_m"]) < 0.3, "both disarmed on the ground"
+
+
+def test_a_fleet_of_real_autopilots_refuses_what_it_does_not_fly(tmp_path: Path) -> None:
+    for kw in ({"autopilot": "px4"}, {"autopilot": "ardupilot", "cut": (1, 2)}):
+        with pytest.raises(ValueError, match="px4|cut"):
+            fly_fleet_trial(tmp_path, 2, GridConfig(width=8, height=8, n_targets=3), plot=False, **kw)
+
+
+def test_sitl_runs_a_fleet_of_real_autopilots_on_one_field_only(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from missions.cli import app
+
+    out = ["--field-out", str(tmp_path / "f.json"), "-i", "27"]
+    for args, words in ((["--autopilot", "ardupilot", "--count", "2"], "--one-field"),
+                        (["--autopilot", "px4", "--count", "2", "--one-field"], "ArduPilot's so far")):
+        r = CliRunner().invoke(app, ["sitl", *out, *args])
+        assert r.exit_code == 2 and words in " ".join(r.output.replace("│", " ").split()), (args, r.output)
+    assert not list(tmp_path.iterdir())
