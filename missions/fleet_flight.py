@@ -84,8 +84,12 @@ def build_team(links: Sequence[VehicleLink], specs: Sequence[SearchSpec], seed: 
         raise ValueError("every vehicle of a fleet flies one field: the grids differ")
     if grid.levels > 1:
         raise ValueError("a fleet flies one height (altitude levels: one vehicle at a time so far)")
+    areas = [s.area for s in specs]
+    if any(a is not None for a in areas) and (any(a is None for a in areas) or
+                                              any(not np.array_equal(a.mask, areas[0].mask) for a in areas)):
+        raise ValueError("every vehicle of a fleet flies one field: the real fields' masks differ")
     planner = FleetPlanner()
-    planner.reset_team(grid, n, seed)
+    planner.reset_team(grid, n, seed, mask=None if areas[0] is None else areas[0].mask)
     team = TeamRound(n, planner, grid, separation, round_timeout_s)
     services = []
     for i, (link, spec) in enumerate(zip(links, specs, strict=True)):
@@ -194,6 +198,20 @@ def specs_from_fields(paths: Sequence[Path], altitude: float = 3.5, max_moves: i
             raise FieldFileError(f"{p}: another field than {paths[0]}'s (origin, size or targets differ)")
         if not f.connect:
             raise FieldFileError(f"{p}: names no address to connect to")
+    if len({f.polygon for f in fields}) != 1:
+        raise FieldFileError(f"the field files name different real fields ({sorted({str(f.polygon) for f in fields})})")
+    real: dict[str, Any] = {}
+    if first.polygon is not None:  # a real field: its mask searched, its fence on every vehicle
+        from missions.field_run import field_spec, load_polygon
+
+        try:
+            pf = load_polygon(Path(first.polygon))
+        except (OSError, ValueError) as e:
+            raise FieldFileError(f"{paths[0]}: its real field {first.polygon}: {e}") from e
+        if (pf.width, pf.height) != (first.grid.width, first.grid.height):
+            raise FieldFileError(f"{paths[0]}: the real field {first.polygon} is {pf.width} x {pf.height}, the file's "
+                                 f"grid {first.grid.width} x {first.grid.height}")
+        real = field_spec(pf)
     addresses = [f.connect for f in fields]
     if len(set(addresses)) != len(addresses):
         raise FieldFileError(f"two field files name one address ({addresses}): one link per vehicle")
@@ -205,7 +223,7 @@ def specs_from_fields(paths: Sequence[Path], altitude: float = 3.5, max_moves: i
     # error must not put two vehicles in one place)
     # a real autopilot's home is its GPS fix at arming: each vehicle's pad is given (its field file's)
     specs = [SearchSpec(f.origin, f.grid, altitude + i * HEIGHT_STEP_M, max_moves=max_moves, field_edge=f.edge,
-                        set_failsafe=set_failsafe, launch_ne=f.launch_ne) for i, f in enumerate(fields)]
+                        set_failsafe=set_failsafe, launch_ne=f.launch_ne, **real) for i, f in enumerate(fields)]
     return specs, addresses, first.grid
 
 

@@ -146,7 +146,7 @@ def register(app: typer.Typer) -> None:
                                      "and the detector are built for 2 m", param_hint="--cell-m")
         pf = None
         if polygon_field is not None:
-            pf = _polygon(polygon_field, autopilot != Autopilot.ours, count)
+            pf = _polygon(polygon_field, autopilot != Autopilot.ours, count, one_field)
             width, height = pf.width, pf.height
             lat, lon, alt = pf.origin.lat_deg, pf.origin.lon_deg, pf.origin.alt_m
         try:
@@ -185,7 +185,7 @@ def register(app: typer.Typer) -> None:
         cfgs = []
         starts = None
         if one_field and count > 1:
-            starts = _team_starts(grid, seed, count)
+            starts = _team_starts(grid, seed, count, None if pf is None else pf.mask)
         for n in range(instance, instance + count):
             try:
                 probe = SitlConfig(instance=n, gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
@@ -290,14 +290,15 @@ def _margin(levels: int) -> float:
     return footprint_margin_m(levels)
 
 
-def _polygon(path: Path, real_autopilot: bool, count: int):
-    """The real field `sitl --field` renders, loaded and checked; a bad file is one usage error."""
+def _polygon(path: Path, real_autopilot: bool, count: int, one_field: bool = False):
+    """The real field `sitl --field` renders, loaded and checked; a bad file is one usage error.
+    Several vehicles share it only as one fleet's (--count N --one-field: `run --fleet`)."""
     from sim.field import FieldError, load_field
     from sim.gridworld.masks import largest_component
 
-    if real_autopilot or count != 1:
-        raise typer.BadParameter("a real field is flown by our SITL vehicle, one at a time (--autopilot ours, "
-                                 "--count 1)", param_hint="--field")
+    if real_autopilot or (count != 1 and not one_field):
+        raise typer.BadParameter("a real field is flown by our SITL vehicles, one at a time or as one fleet "
+                                 "(--autopilot ours, --count 1, or --count N --one-field)", param_hint="--field")
     try:
         pf = load_field(str(path))
     except FieldError as e:
@@ -310,15 +311,18 @@ def _polygon(path: Path, real_autopilot: bool, count: int):
     return pf
 
 
-def _team_starts(grid, seed: int, count: int) -> list[tuple[int, int]]:
+def _team_starts(grid, seed: int, count: int, mask=None) -> list[tuple[int, int]]:
     """The start cells of `count` vehicles on one field: the team grid world's (the episode's
     start cell, then cells free of targets and of the others, sim.gridworld.team.team_starts),
-    so the fleet flight starts where the team world of the same seed does."""
+    so the fleet flight starts where the team world of the same seed does. mask: a real field's
+    (its largest 4-connected part, as the scene places the episode on it)."""
     from sim.gridworld import ConfigError, sample_episodes
+    from sim.gridworld.masks import largest_component
     from sim.gridworld.team import team_starts
 
+    m = None if mask is None else largest_component(np.asarray(mask, bool))
     try:
-        s = team_starts(sample_episodes(grid, 1, seed), count)[0]
+        s = team_starts(sample_episodes(grid, 1, seed, mask=m), count)[0]
     except ConfigError as e:
         raise typer.BadParameter(str(e), param_hint="--count") from e
     return [(int(x), int(y)) for x, y in s]
