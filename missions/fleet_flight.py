@@ -198,6 +198,9 @@ def specs_from_fields(paths: Sequence[Path], altitude: float = 3.5, max_moves: i
             raise FieldFileError(f"{p}: another field than {paths[0]}'s (origin, size or targets differ)")
         if not f.connect:
             raise FieldFileError(f"{p}: names no address to connect to")
+    if first.grid.levels > 1:
+        raise FieldFileError(f"{paths[0]}: {first.grid.levels} altitude levels: a fleet flies one height's cells "
+                             "for now (docs/fleet_flight.md, Left)")
     if len({f.polygon for f in fields}) != 1:
         raise FieldFileError(f"the field files name different real fields ({sorted({str(f.polygon) for f in fields})})")
     real: dict[str, Any] = {}

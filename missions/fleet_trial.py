@@ -50,9 +50,9 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     """Fly one fleet trial; write OUT/report.json (and the companion's logs and plot). cut:
     (vehicle, round) whose link is cut once the team has decided that many rounds; kill:
     (vehicle, round) force-disarmed then by a ground station on its GCS link (it falls).
-    autopilot "ardupilot": each vehicle a real ArduCopter SITL flying a world of its own
-    (sim.bridges) on the one episode, on an instance this trial holds (ports, SYSID_THISMAV),
-    its camera a component on its own endpoint, its failsafe set by the companion."""
+    autopilot "ardupilot" / "px4": each vehicle a real ArduCopter / PX4 SITL flying a world of
+    its own (sim.bridges) on the one episode, on an instance this trial holds (ports, system
+    id), its camera a component on its own endpoint, its failsafe set by the companion."""
     from autopilot_bridge.link.connection import VehicleLink
     from autopilot_bridge.service.fleet import SAME_HEIGHT_M
     from autopilot_bridge.service.policy_service import SearchSpec
@@ -68,8 +68,8 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     from autopilot_bridge.service.fleet import HEIGHT_STEP_M
 
     height_step_m = HEIGHT_STEP_M if height_step_m is None else height_step_m
-    if autopilot not in ("ours", "ardupilot"):
-        raise ValueError(f"a fleet flies autopilot 'ours' or 'ardupilot' (got {autopilot!r}; PX4 fleets: not yet)")
+    if autopilot not in ("ours", "ardupilot", "px4"):
+        raise ValueError(f"a fleet flies autopilot 'ours', 'ardupilot' or 'px4' (got {autopilot!r})")
     if autopilot != "ours" and (cut is not None or kill is not None or physics != "pybullet"):
         raise ValueError("a fleet of real autopilots flies the PyBullet body, with no cut or killed link (for now)")
     out = Path(out)
@@ -103,7 +103,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
             team, services = build_team(links, specs, seed)
             fleet.start()
         else:
-            fleet = _ArduPilotFleet(held, vehicles, grid, origin, seed, starts, speedup)
+            fleet = _AutopilotFleet(held, autopilot, vehicles, grid, origin, seed, starts, speedup)
             links, frames = fleet.links, fleet.frames
             specs = [SearchSpec(origin=fleet[i].field_origin, grid=grid, field_edge=True, set_failsafe=True,
                                 altitude_m=3.5 + i * height_step_m, launch_ne=fleet[i].launch_ne)
@@ -241,13 +241,14 @@ class _WorldVehicle:
         return self.world.vehicle_cell()
 
 
-class _ArduPilotFleet:
-    """N ArduCopter SITL binaries, each on a world of its own (one episode, the team's start
-    cells, sensors seed + i), on instances held for the trial; each companion link is opened
-    before its binary starts (it hears the first heartbeat), then its camera component."""
+class _AutopilotFleet:
+    """N real autopilot binaries (ArduCopter or PX4 SITL), each on a world of its own (one
+    episode, the team's start cells, sensors seed + i), on instances held for the trial (PX4:
+    1-9, its port plan); each companion link is opened before its binary starts (it hears the
+    first heartbeat), then its camera component."""
 
-    def __init__(self, held: ExitStack, n: int, grid: GridConfig, origin: Any, seed: int, starts: np.ndarray,
-                 speedup: float) -> None:
+    def __init__(self, held: ExitStack, autopilot: str, n: int, grid: GridConfig, origin: Any, seed: int,
+                 starts: np.ndarray, speedup: float) -> None:
         from autopilot_bridge.camera import open_source
         from autopilot_bridge.link.connection import VehicleLink
         from missions.autopilot_flight import hold_instance
@@ -260,7 +261,7 @@ class _ArduPilotFleet:
             for i in range(n):
                 inst = held.enter_context(hold_instance())
                 world = AutopilotWorld(AutopilotWorldConfig(
-                    autopilot="ardupilot", instance=inst, speedup=speedup, home=origin, grid=grid, episode_seed=seed,
+                    autopilot=autopilot, instance=inst, speedup=speedup, home=origin, grid=grid, episode_seed=seed,
                     seed=seed + i, gcs_port=None, spawn_cell=(int(starts[i][0]), int(starts[i][1]))))
                 self.links.append(VehicleLink(world.companion_address().replace("udpin:127.0.0.1:", "udpin:0.0.0.0:"),
                                               tlog=None))

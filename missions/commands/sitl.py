@@ -160,6 +160,9 @@ def register(app: typer.Typer) -> None:
         if pf is not None and levels > 1:
             raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
                                      param_hint="--levels")
+        if one_field and count > 1 and levels > 1:
+            raise typer.BadParameter("a fleet on one field flies one height's cells for now (docs/fleet_flight.md)",
+                                     param_hint="--levels")
         search_grid = _with_levels(grid, levels, detection)
         # the fence must hold the whole field seen from any spawn cell: its diagonal, and a margin
         diagonal = float(np.hypot(width, height)) * cell_m

@@ -28,19 +28,20 @@ def test_two_arducopters_find_every_target_apart_and_land(tmp_path: Path) -> Non
 
 
 def test_a_fleet_of_real_autopilots_refuses_what_it_does_not_fly(tmp_path: Path) -> None:
-    for kw in ({"autopilot": "px4"}, {"autopilot": "ardupilot", "cut": (1, 2)}):
-        with pytest.raises(ValueError, match="px4|cut"):
+    for kw in ({"autopilot": "inav"}, {"autopilot": "ardupilot", "cut": (1, 2)}):
+        with pytest.raises(ValueError, match="inav|cut"):
             fly_fleet_trial(tmp_path, 2, GridConfig(width=8, height=8, n_targets=3), plot=False, **kw)
 
 
-def test_sitl_runs_a_fleet_of_real_autopilots_on_one_field_only(tmp_path: Path) -> None:
+def test_sitl_refuses_by_name_the_fleets_it_does_not_run(tmp_path: Path) -> None:
     from typer.testing import CliRunner
 
     from missions.cli import app
 
     out = ["--field-out", str(tmp_path / "f.json"), "-i", "27"]
     for args, words in ((["--autopilot", "ardupilot", "--count", "2"], "--one-field"),
-                        (["--autopilot", "px4", "--count", "2", "--one-field"], "ArduPilot's so far")):
+                        (["--autopilot", "px4", "--count", "2", "--one-field"], "ArduPilot's so far"),
+                        (["--count", "2", "--one-field", "--levels", "2"], "one height")):
         r = CliRunner().invoke(app, ["sitl", *out, *args])
         assert r.exit_code == 2 and words in " ".join(r.output.replace("│", " ").split()), (args, r.output)
     assert not list(tmp_path.iterdir())
