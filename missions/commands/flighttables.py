@@ -119,17 +119,22 @@ def register(app: typer.Typer) -> None:
         from missions.fleet_table import fleet_flight_table
         from sim.gridworld import ConfigError, GridConfig
 
-        for bad, what in ((autopilot == "px4", "--autopilot"), (camera != "mavlink", "--camera"),
+        for bad, what in ((camera != "mavlink", "--camera"),
                           (levels != 1, "--levels"), (field is not None, "--field"), (policy is not None, "--policy")):
             if bad:
-                raise typer.BadParameter("a fleet flies our SITL vehicles or ArduCopter SITL ones with their MAVLink "
-                                         "cameras, one height, the team planner, on a rectangle (for now)",
+                raise typer.BadParameter("a fleet flies our SITL vehicles or real ArduCopter / PX4 SITL ones with "
+                                         "their MAVLink cameras, one height, the team planner, on a rectangle (for now)",
                                          param_hint=what)
-        if autopilot == "ardupilot":  # no binary: one line before anything flies
-            from sim.bridges.processes import ARDUPILOT_ENV, AutopilotStartError, find_binary
+        if autopilot != "ours":  # no binary: one line before anything flies
+            from sim.bridges.processes import (
+                ARDUPILOT_ENV,
+                PX4_ENV,
+                AutopilotStartError,
+                find_binary,
+            )
 
             try:
-                find_binary(None, ARDUPILOT_ENV, "ArduPilot SITL (arducopter)")
+                find_binary(None, ARDUPILOT_ENV if autopilot == "ardupilot" else PX4_ENV, autopilot)
             except AutopilotStartError as e:
                 raise typer.BadParameter(str(e), param_hint="--autopilot") from e
         try:

@@ -338,9 +338,9 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
                     camera_px: int = 50, one_field: bool = False) -> None:
     """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
     physics, the field file pointing the companion at the binary's API link. With `--count N
-    --one-field` (ArduPilot): N binaries (instances I..I+N-1: their own JSON, API, camera and
-    GCS ports, SYSID_THISMAV I+1...), each flying a world of its own on the one episode from the
-    team grid world's start cell, all in this process; one field file each for `run --fleet`."""
+    --one-field`: N binaries (instances I..I+N-1: their own physics, API, camera and GCS ports,
+    system ids I+1...), each flying a world of its own on the one episode from the team grid
+    world's start cell, all in this process; one field file each for `run --fleet`."""
     from missions.fieldfile import FieldSpec, write_field
     from missions.ports import udp_port_taken
     from sim.bridges.ardupilot_json import json_port
@@ -351,8 +351,6 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
     fleet = count > 1
     for bad, what, hint in ((fleet and not one_field, "one vehicle (--count 1), or a fleet on one field (--count N "
                              "--one-field)", "--count"),
-                            (fleet and autopilot == "px4", "one vehicle (--count 1): a fleet of real autopilots is "
-                             "ArduPilot's so far (--autopilot ardupilot)", "--count"),
                             (physics != Physics.pybullet, "the PyBullet body (--physics pybullet)", "--physics"),
                             (key is not None, "no MAVLink signing of ours (set the autopilot's own)", "--signing-key-file"),
                             (tlog is not None, "no .tlog of ours (the autopilot logs itself)", "--tlog"),
