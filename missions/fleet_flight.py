@@ -84,8 +84,12 @@ def build_team(links: Sequence[VehicleLink], specs: Sequence[SearchSpec], seed: 
         raise ValueError("every vehicle of a fleet flies one field: the grids differ")
     if grid.levels > 1:
         raise ValueError("a fleet flies one height (altitude levels: one vehicle at a time so far)")
+    areas = [s.area for s in specs]
+    if any(a is not None for a in areas) and (any(a is None for a in areas) or
+                                              any(not np.array_equal(a.mask, areas[0].mask) for a in areas)):
+        raise ValueError("every vehicle of a fleet flies one field: the real fields' masks differ")
     planner = FleetPlanner()
-    planner.reset_team(grid, n, seed)
+    planner.reset_team(grid, n, seed, mask=None if areas[0] is None else areas[0].mask)
     team = TeamRound(n, planner, grid, separation, round_timeout_s)
     services = []
     for i, (link, spec) in enumerate(zip(links, specs, strict=True)):
@@ -194,6 +198,23 @@ def specs_from_fields(paths: Sequence[Path], altitude: float = 3.5, max_moves: i
             raise FieldFileError(f"{p}: another field than {paths[0]}'s (origin, size or targets differ)")
         if not f.connect:
             raise FieldFileError(f"{p}: names no address to connect to")
+    if first.grid.levels > 1:
+        raise FieldFileError(f"{paths[0]}: {first.grid.levels} altitude levels: a fleet flies one height's cells "
+                             "for now (docs/fleet_flight.md, Left)")
+    if len({f.polygon for f in fields}) != 1:
+        raise FieldFileError(f"the field files name different real fields ({sorted({str(f.polygon) for f in fields})})")
+    real: dict[str, Any] = {}
+    if first.polygon is not None:  # a real field: its mask searched, its fence on every vehicle
+        from missions.field_run import field_spec, load_polygon
+
+        try:
+            pf = load_polygon(Path(first.polygon))
+        except (OSError, ValueError) as e:
+            raise FieldFileError(f"{paths[0]}: its real field {first.polygon}: {e}") from e
+        if (pf.width, pf.height) != (first.grid.width, first.grid.height):
+            raise FieldFileError(f"{paths[0]}: the real field {first.polygon} is {pf.width} x {pf.height}, the file's "
+                                 f"grid {first.grid.width} x {first.grid.height}")
+        real = field_spec(pf)
     addresses = [f.connect for f in fields]
     if len(set(addresses)) != len(addresses):
         raise FieldFileError(f"two field files name one address ({addresses}): one link per vehicle")
@@ -203,19 +224,24 @@ def specs_from_fields(paths: Sequence[Path], altitude: float = 3.5, max_moves: i
                              "above home: more than 30 m")
     # vehicle i at altitude + i * HEIGHT_STEP_M (autopilot_bridge.service.fleet: one cell of position
     # error must not put two vehicles in one place)
+    # a real autopilot's home is its GPS fix at arming: each vehicle's pad is given (its field file's)
     specs = [SearchSpec(f.origin, f.grid, altitude + i * HEIGHT_STEP_M, max_moves=max_moves, field_edge=f.edge,
-                        set_failsafe=set_failsafe) for i, f in enumerate(fields)]
+                        set_failsafe=set_failsafe, launch_ne=f.launch_ne, **real) for i, f in enumerate(fields)]
     return specs, addresses, first.grid
 
 
 def run_fleet(paths: Sequence[Path], out: Path, seed: int = 0, on_abort: str = "land", altitude: float = 3.5,
               max_moves: int | None = None, move_timeout_s: float = 20.0, abort_timeout_s: float = 120.0,
-              tlog: bool = True, echo: Callable[[str], None] = print) -> int:
-    """`uavsearch run --fleet FIELD...`: connect to every vehicle, search, land; the exit status."""
-    from missions.fieldfile import FieldFileError
+              tlog: bool = True, echo: Callable[[str], None] = print, set_failsafe: bool = False) -> int:
+    """`uavsearch run --fleet FIELD...`: connect to every vehicle, search, land; the exit status.
+    A vehicle whose field file names a camera of its own (a camera component beside a real
+    autopilot, `sitl --autopilot ardupilot --count N --one-field`) is watched there, each
+    vehicle's link in the dialect its HEARTBEAT names."""
+    from missions.fieldfile import FieldFileError, read_field
 
     try:
-        specs, addresses, grid = specs_from_fields(paths, altitude, max_moves)
+        specs, addresses, grid = specs_from_fields(paths, altitude, max_moves, set_failsafe)
+        cameras = [read_field(p).camera for p in paths]
     except FieldFileError as e:
         echo(f"error: {e}")
         return 2
@@ -223,15 +249,33 @@ def run_fleet(paths: Sequence[Path], out: Path, seed: int = 0, on_abort: str = "
     config = {"fleet": [str(p) for p in paths], "connect": addresses, "grid": grid.to_dict(), "policy": "belief-team",
               "altitude": altitude, "altitudes_m": [s.altitude_m for s in specs], "max_moves": max_moves, "on_abort": on_abort}
     links: list[VehicleLink] = []
+    opened: list[Any] = []  # the cameras of their own this companion opened, closed with the links
     try:
         for i, a in enumerate(addresses):
             links.append(VehicleLink(a, tlog=out / f"companion-{i}.tlog" if tlog else None,
                                      tlog_meta=stamp(config, seed, kind="companion tlog", vehicle=i)))
         echo(f"fleet of {len(links)} on a {grid.width} x {grid.height} field, {grid.n_targets} targets; team "
              f"belief planner, one shared belief; connecting to {', '.join(addresses)} (on abort: {on_abort})")
-        team, services = build_team(links, specs, seed)
+        frames = None
+        if any(c is not None for c in cameras):
+            from autopilot_bridge.camera import CameraNotFound, MavlinkCamera, open_source
+
+            frames = []
+            for i, (c, link) in enumerate(zip(cameras, links, strict=True)):
+                if c is None:
+                    frames.append(MavlinkCamera(link))
+                    continue
+                try:  # before anything flies: a camera not answering is one clear line, nothing armed
+                    opened.append(open_source(c, link, timeout_s=30.0, tlog=out / f"camera-{i}.tlog" if tlog else None))
+                except CameraNotFound as e:
+                    echo(f"error: vehicle {i}: {e}")
+                    return EXIT_FAILED
+                frames.append(opened[-1])
+        team, services = build_team(links, specs, seed, frames=frames)
         end = fly_fleet(team, services, on_abort, abort_timeout_s, move_timeout_s, echo)
     finally:
+        for f in opened:
+            f.close()
         for link in links:
             link.close()
     log = end.team.log

@@ -27,14 +27,15 @@ ROW_KEYS = ("seed", "outcome", "moves", "grid_makespan", "flight_grid_ratio", "t
 
 def fleet_flight_table(vehicles: int, grid: GridConfig, seeds: list[int], out: Path, speedup: float = 10.0,
                        physics: str = "pybullet", command: str = "uavsearch flight-table --agents",
-                       echo: Callable[[str], None] = print) -> dict[str, Any]:
-    """Fly every seed with `vehicles` vehicles on one field; write the table; return its document."""
+                       echo: Callable[[str], None] = print, autopilot: str = "ours") -> dict[str, Any]:
+    """Fly every seed with `vehicles` vehicles on one field; write the table; return its document.
+    autopilot "ardupilot": each vehicle a real ArduCopter SITL on our world (missions.fleet_trial)."""
     if vehicles < 2:
         raise ValueError(f"a fleet needs at least 2 vehicles (got {vehicles})")
     rows = []
     t0 = time.monotonic()
     for s in seeds:
-        r = fly_fleet_trial(out / f"seed-{s}", vehicles, grid, s, speedup, physics)
+        r = fly_fleet_trial(out / f"seed-{s}", vehicles, grid, s, speedup, physics, autopilot=autopilot)
         rows.append({k: r[k] for k in ROW_KEYS})
         echo(f"seed {s}: {r['moves']} moves (grid {r['grid_makespan']}), {r['truly_found']}/{grid.n_targets} truly "
              f"found, {r['separation_refused']} refused, least {r['min_true_separation_m']} m, {r['wall_s']:.0f} s")
@@ -49,7 +50,8 @@ def fleet_flight_table(vehicles: int, grid: GridConfig, seeds: list[int], out: P
                "moves_mean": float(np.mean([r["moves"] for r in rows])),
                "grid_mean": float(np.mean([r["grid_makespan"] for r in rows])), "wall_s": time.monotonic() - t0}
     config = {"vehicles": vehicles, "grid": grid.to_dict(), "seeds": seeds, "speedup": speedup, "physics": physics,
-              "policy": "belief-team (perfect sharing, one companion)", "command": command}
+              "policy": "belief-team (perfect sharing, one companion)", "command": command,
+              **({} if autopilot == "ours" else {"autopilot": autopilot})}
     doc = stamp(config, seeds[0], summary=summary, flights=rows)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_json(out / "fleet_flights.json", doc)

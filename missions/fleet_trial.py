@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 import time
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -44,10 +45,14 @@ def grid_makespan(grid: GridConfig, seed: int, n: int) -> int:
 def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None, seed: int = 0,
                     speedup: float = 12.0, physics: str = "pybullet", cut: tuple[int, int] | None = None,
                     move_timeout_s: float = 20.0, plot: bool = True, echo=lambda m: None,
-                    height_step_m: float | None = None, kill: tuple[int, int] | None = None) -> dict[str, Any]:
+                    height_step_m: float | None = None, kill: tuple[int, int] | None = None,
+                    autopilot: str = "ours") -> dict[str, Any]:
     """Fly one fleet trial; write OUT/report.json (and the companion's logs and plot). cut:
     (vehicle, round) whose link is cut once the team has decided that many rounds; kill:
-    (vehicle, round) force-disarmed then by a ground station on its GCS link (it falls)."""
+    (vehicle, round) force-disarmed then by a ground station on its GCS link (it falls).
+    autopilot "ardupilot" / "px4": each vehicle a real ArduCopter / PX4 SITL flying a world of
+    its own (sim.bridges) on the one episode, on an instance this trial holds (ports, system
+    id), its camera a component on its own endpoint, its failsafe set by the companion."""
     from autopilot_bridge.link.connection import VehicleLink
     from autopilot_bridge.service.fleet import SAME_HEIGHT_M
     from autopilot_bridge.service.policy_service import SearchSpec
@@ -63,14 +68,18 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     from autopilot_bridge.service.fleet import HEIGHT_STEP_M
 
     height_step_m = HEIGHT_STEP_M if height_step_m is None else height_step_m
+    if autopilot not in ("ours", "ardupilot", "px4"):
+        raise ValueError(f"a fleet flies autopilot 'ours', 'ardupilot' or 'px4' (got {autopilot!r})")
+    if autopilot != "ours" and (cut is not None or kill is not None or physics != "pybullet"):
+        raise ValueError("a fleet of real autopilots flies the PyBullet body, with no cut or killed link (for now)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     starts = team_starts(sample_episodes(grid, 1, seed), vehicles)[0]
     origin = HomePosition(*ORIGIN)
-    ports = _free_udp_ports(4 * vehicles)
+    ports = _free_udp_ports(4 * vehicles) if autopilot == "ours" else []
     proxy: FaultProxy | None = None
     cfgs, addresses = [], []
-    for i in range(vehicles):
+    for i in range(vehicles if autopilot == "ours" else 0):
         local, listen, gcs_l, gcs_r = ports[4 * i:4 * i + 4]
         remote = listen
         if cut is not None and cut[0] == i:
@@ -85,12 +94,21 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
     fleet = None
     track: list[list[np.ndarray]] = [[] for _ in range(vehicles)]
     stop = threading.Event()
+    held = ExitStack()
     try:
-        fleet = SitlFleet(cfgs)
-        specs = [SearchSpec(origin=fleet[i].field_origin, grid=grid, field_edge=cfgs[i].field_edge,
-                            altitude_m=3.5 + i * height_step_m) for i in range(vehicles)]
-        team, services = build_team(links, specs, seed)
-        fleet.start()
+        if autopilot == "ours":
+            fleet = SitlFleet(cfgs)
+            specs = [SearchSpec(origin=fleet[i].field_origin, grid=grid, field_edge=cfgs[i].field_edge,
+                                altitude_m=3.5 + i * height_step_m) for i in range(vehicles)]
+            team, services = build_team(links, specs, seed)
+            fleet.start()
+        else:
+            fleet = _AutopilotFleet(held, autopilot, vehicles, grid, origin, seed, starts, speedup)
+            links, frames = fleet.links, fleet.frames
+            specs = [SearchSpec(origin=fleet[i].field_origin, grid=grid, field_edge=True, set_failsafe=True,
+                                altitude_m=3.5 + i * height_step_m, launch_ne=fleet[i].launch_ne)
+                     for i in range(vehicles)]
+            team, services = build_team(links, specs, seed, frames=frames)
         min_sep = [float("inf")]
         min_level = [float("inf")]
         min_3d = [float("inf")]  # the least distance in space between two airborne vehicles  # the same, between vehicles within SAME_HEIGHT_M of one height
@@ -146,6 +164,7 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
             link.close()
         if fleet is not None:
             fleet.stop()
+        held.close()
         if proxy is not None:
             proxy.stop()
     targets = fleet[0].episode.targets[0]
@@ -157,7 +176,8 @@ def fly_fleet_trial(out: Path, vehicles: int = 3, grid: GridConfig | None = None
         truly |= np.array(truly_met(tr[:, i], herd), bool)
     in_grid = grid_makespan(grid, seed, vehicles)
     log = end.team.log
-    config = {"kill": None if kill is None else list(kill), "vehicles": vehicles, "grid": grid.to_dict(), "speedup": speedup, "physics": physics,
+    config = {"kill": None if kill is None else list(kill), "vehicles": vehicles,
+              **({} if autopilot == "ours" else {"autopilot": autopilot}), "grid": grid.to_dict(), "speedup": speedup, "physics": physics,
               "altitudes_m": [3.5 + i * height_step_m for i in range(vehicles)],
               "cut": None if cut is None else list(cut), "starts": starts.tolist(), "policy": "belief-team"}
     # the flight's makespan: the rounds that moved the team (the last round saw the last find and
@@ -203,3 +223,67 @@ def _force_disarm(cfg) -> None:
                 return
     finally:
         gcs.close()
+
+
+class _WorldVehicle:
+    """One real autopilot's world seen by the scorer as our SITL vehicle is (the names the
+    trial's watcher reads: vehicle_cell, model.state, spawn_ne, field_origin, episode)."""
+
+    def __init__(self, world: Any) -> None:
+        self.world = world
+        self.model = world.body
+        self.spawn_ne = world.scene.spawn_ne
+        self.field_origin = world.scene.field_origin
+        self.episode = world.scene.episode
+        self.launch_ne = tuple(float(v) for v in world.scene.spawn_ne)
+
+    def vehicle_cell(self) -> np.ndarray:
+        return self.world.vehicle_cell()
+
+
+class _AutopilotFleet:
+    """N real autopilot binaries (ArduCopter or PX4 SITL), each on a world of its own (one
+    episode, the team's start cells, sensors seed + i), on instances held for the trial (PX4:
+    1-9, its port plan); each companion link is opened before its binary starts (it hears the
+    first heartbeat), then its camera component."""
+
+    def __init__(self, held: ExitStack, autopilot: str, n: int, grid: GridConfig, origin: Any, seed: int,
+                 starts: np.ndarray, speedup: float) -> None:
+        from autopilot_bridge.camera import open_source
+        from autopilot_bridge.link.connection import VehicleLink
+        from missions.autopilot_flight import hold_instance
+        from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
+
+        self.worlds: list[Any] = []
+        self.links: list[Any] = []
+        self.frames: list[Any] = []
+        try:
+            for i in range(n):
+                inst = held.enter_context(hold_instance())
+                world = AutopilotWorld(AutopilotWorldConfig(
+                    autopilot=autopilot, instance=inst, speedup=speedup, home=origin, grid=grid, episode_seed=seed,
+                    seed=seed + i, gcs_port=None, spawn_cell=(int(starts[i][0]), int(starts[i][1]))))
+                self.links.append(VehicleLink(world.companion_address().replace("udpin:127.0.0.1:", "udpin:0.0.0.0:"),
+                                              tlog=None))
+                world.start()  # a world that fails to start has stopped itself
+                self.worlds.append(world)
+                self.frames.append(open_source(world.camera_address(), self.links[-1], timeout_s=30.0))
+        except BaseException:
+            self.stop()
+            raise
+        self.vehicles = [_WorldVehicle(w) for w in self.worlds]
+
+    def __getitem__(self, i: int) -> _WorldVehicle:
+        return self.vehicles[i]
+
+    @property
+    def t(self) -> float:
+        return min(w.t for w in self.worlds)
+
+    def stop(self) -> None:
+        for f in self.frames:
+            f.close()
+        for link in self.links:
+            link.close()
+        for w in self.worlds:
+            w.stop()

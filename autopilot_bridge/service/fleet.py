@@ -98,13 +98,63 @@ class FleetPlanner(TeamBeliefPlanner):
     it), and `decide` plans for the vehicles left, however many (down to one: the same
     allocation rule, not the single-agent shortcut, so the belief keeps its rows)."""
 
-    def reset_team(self, cfg: GridConfig, n_agents: int, seed: int) -> None:
+    #: (1, h, w) searchable cells of a real field (reset_team's mask); None: the rectangle
+    mask: np.ndarray | None = None
+
+    def reset_team(self, cfg: GridConfig, n_agents: int, seed: int, mask: np.ndarray | None = None) -> None:
+        """mask: (h, w) bool searchable cells of a real field (the vehicles' FieldArea), None:
+        the whole rectangle (today's planner, the same streams). On a mask, as the lone belief
+        planner on one (policy.planner's _adopt_mask): the belief's prior lives on the
+        searchable cells, a masked cell is never a goal (its reveal is 0), and the moves go by
+        path lengths around the holes (BFS, sim.gridworld.masks). The allocation still weighs
+        goals by Manhattan distance: the FieldArea's mask is one 4-connected part, so every
+        searchable cell is reachable, only a little further round a pond than it weighs."""
         if n_agents < 2:
             raise ValueError(f"a fleet flight needs >= 2 vehicles (got {n_agents})")
         if not self.comms.perfect:
             raise ValueError("a fleet flight shares one belief in one process: perfect sharing only")
         self.reset(cfg, 1, n_agents, seed)
         self.members = list(range(n_agents))  # vehicle index of each planner agent
+        self.mask = None
+        if mask is not None:
+            from policy.belief.state import BeliefState
+            from policy.planner.planner import _window
+
+            m = np.asarray(mask, bool)
+            if m.shape != (cfg.height, cfg.width):
+                raise ValueError(f"the fleet's mask is {m.shape}, the field {cfg.height} x {cfg.width}")
+            self.mask = m[None]
+            density, pair = self.core._prior_cache[(cfg.width, cfg.height, cfg.distribution, cfg.n_targets)]
+            self.shared.belief = BeliefState(cfg, 1, density, pair, mask=self.mask)  # perfect sharing: one row
+            self.core.belief = self.shared.belief
+            viewers = _window(self.mask.astype(np.float64), 1)
+            self.core.cell_weight = np.where(viewers > 0, (9.0 / np.maximum(viewers, 1.0)) ** self.params.edge, 0.0)
+
+    def _reveal(self) -> np.ndarray:
+        r = super()._reveal()
+        return r if self.mask is None else r * self.mask  # a view from a masked cell is no one's to take
+
+    def _moves(self, pos: np.ndarray, goal: np.ndarray, order: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        if self.mask is None:
+            return super()._moves(pos, goal, order, valid)
+        # shortest-path moves on the mask: the goal's BFS field read at each move's next cell
+        from policy.team.base import separate
+        from sim.gridworld.masks import UNREACHABLE, distance_fields
+
+        h, w = self.cfg.height, self.cfg.width
+        a_n = valid.shape[-1]
+        nxt = pos[:, :, None, :] + DELTAS[None, None, :a_n]
+        cx, cy = np.clip(nxt[..., 0], 0, w - 1), np.clip(nxt[..., 1], 0, h - 1)
+        dg = distance_fields(self.mask, goal)  # (1, k, h, w) from each vehicle's goal
+        k = self.k
+        d0 = dg[0, np.arange(k), pos[0, :, 1], pos[0, :, 0]][None].astype(np.int64)
+        d1 = dg[0, np.arange(k)[:, None], cy[0], cx[0]][None].astype(np.int64)
+        d1 = np.where(valid, d1, UNREACHABLE)
+        rb = self._reveal_b[self._brow]
+        gain = rb[np.zeros((1, 1, 1), np.int64), np.arange(k)[None, :, None], cy, cx]
+        key = self.params.tie_reveal * gain + self.rng.random(gain.shape) * 1e-6
+        prefs = np.where(d1 < d0[..., None], 1e6 + key, np.where(d1 == d0[..., None], 1e3 + key, key))
+        return separate(pos, prefs, valid, order)
 
     def drop(self, vehicle: int) -> None:
         if vehicle not in self.members:
@@ -187,6 +237,10 @@ class VehicleProxy:
     name = "belief-team"
     needs_truth = False
     off_map = "random"
+    #: the lone loop's "found every target" is the team's, told in the round: a vehicle that found
+    #: them all itself (seed 1 on a 2-target paddock) otherwise broke off before the team heard of
+    #: its last find, and the other searched to the move cap for a target already found
+    team_counts_finds = True
 
     def __init__(self, team: TeamRound, index: int) -> None:
         self.team, self.index = team, index

@@ -269,7 +269,9 @@ class PolicyService:
             if self.on_progress is not None:
                 self.on_progress(Progress(move, max_moves, found, g.n_targets, (int(cell[0]), int(cell[1])),
                                           self.clock() - t_start, self.log.posterior_sd_m[-1]))
-            if found >= g.n_targets or move == max_moves:
+            # a fleet's vehicle goes on to the team's round even when it found every target itself:
+            # the team counts the finds and says when the search ends (autopilot_bridge.service.fleet)
+            if (found >= g.n_targets and not getattr(self.policy, "team_counts_finds", False)) or move == max_moves:
                 break
             if levels:
                 obs = self._level_observation(view, cell, lv, move, found_now)

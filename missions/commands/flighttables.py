@@ -119,11 +119,24 @@ def register(app: typer.Typer) -> None:
         from missions.fleet_table import fleet_flight_table
         from sim.gridworld import ConfigError, GridConfig
 
-        for bad, what in ((autopilot != "ours", "--autopilot"), (camera != "mavlink", "--camera"),
+        for bad, what in ((camera != "mavlink", "--camera"),
                           (levels != 1, "--levels"), (field is not None, "--field"), (policy is not None, "--policy")):
             if bad:
-                raise typer.BadParameter("a fleet flies our SITL vehicles with their MAVLink cameras, one height, "
-                                         "the team planner, on a rectangle (for now)", param_hint=what)
+                raise typer.BadParameter("a fleet flies our SITL vehicles or real ArduCopter / PX4 SITL ones with "
+                                         "their MAVLink cameras, one height, the team planner, on a rectangle (for now)",
+                                         param_hint=what)
+        if autopilot != "ours":  # no binary: one line before anything flies
+            from sim.bridges.processes import (
+                ARDUPILOT_ENV,
+                PX4_ENV,
+                AutopilotStartError,
+                find_binary,
+            )
+
+            try:
+                find_binary(None, ARDUPILOT_ENV if autopilot == "ardupilot" else PX4_ENV, autopilot)
+            except AutopilotStartError as e:
+                raise typer.BadParameter(str(e), param_hint="--autopilot") from e
         try:
             grid = GridConfig(width=width or 20, height=height or 20, n_targets=targets or 10)
         except ConfigError as e:
@@ -131,7 +144,7 @@ def register(app: typer.Typer) -> None:
         command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["flight-table"] else \
             "python -m missions flight-table --agents"
         doc = fleet_flight_table(agents, grid, _seeds(first_seed, seeds), out, speedup, command=command,
-                                 echo=typer.echo)
+                                 echo=typer.echo, autopilot=autopilot)
         s = doc["summary"]
         typer.echo(f"fleet of {agents}: makespan flight/grid mean {s['flight_grid_mean']:.3f}, max "
                    f"{s['flight_grid_max']:.3f}; truly found {s['truly_found_pct']:.1f} %; separation refused "

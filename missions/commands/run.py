@@ -103,7 +103,7 @@ def register(app: typer.Typer) -> None:
                                        on_abort="land" if on_abort == AbortAction.rtl else on_abort.value,
                                        altitude=3.5 if altitude is None else altitude, max_moves=max_moves,
                                        move_timeout_s=move_timeout, abort_timeout_s=abort_timeout, tlog=tlog,
-                                       echo=typer.echo))
+                                       echo=typer.echo, set_failsafe=set_failsafe))
         from autopilot_bridge.link.connection import VehicleLink
         from autopilot_bridge.link.dialects import NAMES as AUTOPILOTS
         from autopilot_bridge.service.journal import (

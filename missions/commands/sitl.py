@@ -146,7 +146,7 @@ def register(app: typer.Typer) -> None:
                                      "and the detector are built for 2 m", param_hint="--cell-m")
         pf = None
         if polygon_field is not None:
-            pf = _polygon(polygon_field, autopilot != Autopilot.ours, count)
+            pf = _polygon(polygon_field, autopilot != Autopilot.ours, count, one_field)
             width, height = pf.width, pf.height
             lat, lon, alt = pf.origin.lat_deg, pf.origin.lon_deg, pf.origin.alt_m
         try:
@@ -160,6 +160,9 @@ def register(app: typer.Typer) -> None:
         if pf is not None and levels > 1:
             raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
                                      param_hint="--levels")
+        if one_field and count > 1 and levels > 1:
+            raise typer.BadParameter("a fleet on one field flies one height's cells for now (docs/fleet_flight.md)",
+                                     param_hint="--levels")
         search_grid = _with_levels(grid, levels, detection)
         # the fence must hold the whole field seen from any spawn cell: its diagonal, and a margin
         diagonal = float(np.hypot(width, height)) * cell_m
@@ -171,7 +174,7 @@ def register(app: typer.Typer) -> None:
         if autopilot != Autopilot.ours:
             _real_autopilot(autopilot.value, autopilot_bin, instance, count, speedup, physics, origin, grid, seed,
                             target_step_s, field_edge, field_out, fence_radius, fence_alt, gcs_port_per_instance,
-                            key, tlog, duration, cell_m, camera_px)
+                            key, tlog, duration, cell_m, camera_px, one_field=one_field)
             return
         vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
         if vport is None:
@@ -185,7 +188,7 @@ def register(app: typer.Typer) -> None:
         cfgs = []
         starts = None
         if one_field and count > 1:
-            starts = _team_starts(grid, seed, count)
+            starts = _team_starts(grid, seed, count, None if pf is None else pf.mask)
         for n in range(instance, instance + count):
             try:
                 probe = SitlConfig(instance=n, gcs_remote_port=14550 + n if gcs_port_per_instance else None, bind=bind)
@@ -290,14 +293,15 @@ def _margin(levels: int) -> float:
     return footprint_margin_m(levels)
 
 
-def _polygon(path: Path, real_autopilot: bool, count: int):
-    """The real field `sitl --field` renders, loaded and checked; a bad file is one usage error."""
+def _polygon(path: Path, real_autopilot: bool, count: int, one_field: bool = False):
+    """The real field `sitl --field` renders, loaded and checked; a bad file is one usage error.
+    Several vehicles share it only as one fleet's (--count N --one-field: `run --fleet`)."""
     from sim.field import FieldError, load_field
     from sim.gridworld.masks import largest_component
 
-    if real_autopilot or count != 1:
-        raise typer.BadParameter("a real field is flown by our SITL vehicle, one at a time (--autopilot ours, "
-                                 "--count 1)", param_hint="--field")
+    if real_autopilot or (count != 1 and not one_field):
+        raise typer.BadParameter("a real field is flown by our SITL vehicles, one at a time or as one fleet "
+                                 "(--autopilot ours, --count 1, or --count N --one-field)", param_hint="--field")
     try:
         pf = load_field(str(path))
     except FieldError as e:
@@ -310,15 +314,18 @@ def _polygon(path: Path, real_autopilot: bool, count: int):
     return pf
 
 
-def _team_starts(grid, seed: int, count: int) -> list[tuple[int, int]]:
+def _team_starts(grid, seed: int, count: int, mask=None) -> list[tuple[int, int]]:
     """The start cells of `count` vehicles on one field: the team grid world's (the episode's
     start cell, then cells free of targets and of the others, sim.gridworld.team.team_starts),
-    so the fleet flight starts where the team world of the same seed does."""
+    so the fleet flight starts where the team world of the same seed does. mask: a real field's
+    (its largest 4-connected part, as the scene places the episode on it)."""
     from sim.gridworld import ConfigError, sample_episodes
+    from sim.gridworld.masks import largest_component
     from sim.gridworld.team import team_starts
 
+    m = None if mask is None else largest_component(np.asarray(mask, bool))
     try:
-        s = team_starts(sample_episodes(grid, 1, seed), count)[0]
+        s = team_starts(sample_episodes(grid, 1, seed, mask=m), count)[0]
     except ConfigError as e:
         raise typer.BadParameter(str(e), param_hint="--count") from e
     return [(int(x), int(y)) for x, y in s]
@@ -328,9 +335,12 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
                     physics: Physics, origin, grid, seed: int, target_step_s: float, field_edge: bool,
                     field_out: Path, fence_radius: float, fence_alt: float, gcs_port_per_instance: bool,
                     key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float,
-                    camera_px: int = 50) -> None:
+                    camera_px: int = 50, one_field: bool = False) -> None:
     """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
-    physics, the field file pointing the companion at the binary's API link."""
+    physics, the field file pointing the companion at the binary's API link. With `--count N
+    --one-field`: N binaries (instances I..I+N-1: their own physics, API, camera and GCS ports,
+    system ids I+1...), each flying a world of its own on the one episode from the team grid
+    world's start cell, all in this process; one field file each for `run --fleet`."""
     from missions.fieldfile import FieldSpec, write_field
     from missions.ports import udp_port_taken
     from sim.bridges.ardupilot_json import json_port
@@ -338,7 +348,9 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
     from sim.bridges.px4_hil import simulator_port
     from sim.bridges.world import AutopilotWorld, AutopilotWorldConfig
 
-    for bad, what, hint in ((count != 1, "one vehicle (--count 1)", "--count"),
+    fleet = count > 1
+    for bad, what, hint in ((fleet and not one_field, "one vehicle (--count 1), or a fleet on one field (--count N "
+                             "--one-field)", "--count"),
                             (physics != Physics.pybullet, "the PyBullet body (--physics pybullet)", "--physics"),
                             (key is not None, "no MAVLink signing of ours (set the autopilot's own)", "--signing-key-file"),
                             (tlog is not None, "no .tlog of ours (the autopilot logs itself)", "--tlog"),
@@ -349,57 +361,73 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
         find_binary(binary, ARDUPILOT_ENV if autopilot == "ardupilot" else PX4_ENV, autopilot)
     except AutopilotStartError as e:
         raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
-    n = instance
-    if autopilot == "ardupilot":
-        fence = {"FENCE_ENABLE": 1, "FENCE_TYPE": 3, "FENCE_RADIUS": fence_radius, "FENCE_ALT_MAX": fence_alt}
-        taken = udp_port_taken(json_port(n)) or udp_port_taken(14540 + n)
-        what = f"UDP {json_port(n)} (JSON physics) or {14540 + n} (API link)"
-    else:
-        fence = {"GF_MAX_HOR_DIST": fence_radius, "GF_MAX_VER_DIST": fence_alt}
-        import socket
+    starts = _team_starts(grid, seed, count) if fleet else None
+    worlds: list[AutopilotWorld] = []
+    paths: list[Path] = []
+    for k, n in enumerate(range(instance, instance + count)):
+        if autopilot == "ardupilot":
+            fence = {"FENCE_ENABLE": 1, "FENCE_TYPE": 3, "FENCE_RADIUS": fence_radius, "FENCE_ALT_MAX": fence_alt}
+            taken = udp_port_taken(json_port(n)) or udp_port_taken(14540 + n)
+            what = f"UDP {json_port(n)} (JSON physics) or {14540 + n} (API link)"
+        else:
+            fence = {"GF_MAX_HOR_DIST": fence_radius, "GF_MAX_VER_DIST": fence_alt}
+            import socket
 
-        with socket.socket() as s:
-            taken = s.connect_ex(("127.0.0.1", simulator_port(n))) == 0
-        what = f"TCP {simulator_port(n)} (PX4's simulator port)"
-    if taken:
-        raise typer.BadParameter(f"{what} of instance {n} is taken: is another sitl on instance {n} running?",
-                                 param_hint="--instance")
-    cfg = AutopilotWorldConfig(autopilot=autopilot, instance=n, speedup=speedup, binary=binary, home=origin, grid=grid,
-                               episode_seed=seed + n, seed=seed + n, camera=True, camera_px=camera_px,
-                               field_edge=field_edge,
-                               target_step_s=target_step_s, gcs_port=14550 + n if gcs_port_per_instance else 14550,
-                               params=fence)
-    world = AutopilotWorld(cfg)
-    address = world.companion_address()
-    connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
-    write_field(field_out, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
+            with socket.socket() as s:
+                taken = s.connect_ex(("127.0.0.1", simulator_port(n))) == 0
+            what = f"TCP {simulator_port(n)} (PX4's simulator port)"
+        if taken:
+            raise typer.BadParameter(f"{what} of instance {n} is taken: is another sitl on instance {n} running?",
+                                     param_hint="--instance")
+        # a fleet's vehicles fly one episode (the seed's), each its own sensors (seed + n), as ours do
+        cfg = AutopilotWorldConfig(autopilot=autopilot, instance=n, speedup=speedup, binary=binary, home=origin,
+                                   grid=grid, episode_seed=seed if fleet else seed + n, seed=seed + n, camera=True,
+                                   camera_px=camera_px, field_edge=field_edge, target_step_s=target_step_s,
+                                   gcs_port=14550 + n if gcs_port_per_instance else 14550, params=fence,
+                                   spawn_cell=None if starts is None else starts[k])
+        world = AutopilotWorld(cfg)
+        worlds.append(world)
+        address = world.companion_address()
+        connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
+        fpath = field_out if not fleet else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
+        paths.append(fpath)
+        write_field(fpath, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
                                      autopilot=autopilot, camera=world.camera_address(),
-                                     launch_ne=tuple(float(v) for v in world.scene.spawn_ne)),
-                seed + n, sitl=cfg.to_dict())
-    typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
-    typer.echo(f"    companion           uavsearch run --field {field_out}   ({connect})")
-    if world.camera_address() is not None:
-        typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on UDP {cfg.camera_ports[0]} -> "
-                   f"{cfg.camera_ports[1]} (run --camera {world.camera_address()})")
-    typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
-               f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m")
+                                     launch_ne=tuple(float(v) for v in world.scene.spawn_ne),
+                                     team=count if fleet else None),
+                    seed + n, sitl=cfg.to_dict())
+        typer.echo(f"{autopilot} instance {n} (MAVLink system {cfg.sysid}) on our world's physics:")
+        typer.echo(f"    companion           uavsearch run --field {fpath}   ({connect})")
+        if world.camera_address() is not None:
+            typer.echo(f"    camera              MAVLink camera component {cfg.sysid}/100 on UDP {cfg.camera_ports[0]} -> "
+                       f"{cfg.camera_ports[1]} (run --camera {world.camera_address()})")
+        typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
+                   f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m"
+                   + ("" if starts is None else f"; starts on cell {tuple(starts[k])}"))
+    if fleet:
+        typer.echo(f"fleet              uavsearch run --fleet {' '.join(str(p) for p in paths)}")
 
     def terminate(_signum: int, _frame: object) -> None:
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, terminate)
+    started: list[AutopilotWorld] = []  # a world that fails to start has stopped itself
     try:
-        world.start()
-    except AutopilotStartError as e:
-        raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
-    try:
-        while world.process is not None and world.process.alive:
+        try:
+            for world in worlds:
+                world.start()
+                started.append(world)
+        except AutopilotStartError as e:
+            raise typer.BadParameter(str(e), param_hint="--autopilot-bin") from e
+        while all(w.process is not None and w.process.alive for w in worlds):
             time.sleep(0.2)
-            if duration is not None and world.t >= duration:
+            if duration is not None and min(w.t for w in worlds) >= duration:
                 break
-        if world.process is not None and not world.process.alive:
-            typer.echo(f"error: {autopilot} exited:\n{world.process.tail()}", err=True)
+        for w in worlds:
+            if w.process is not None and not w.process.alive:
+                typer.echo(f"error: {autopilot} instance {w.cfg.instance} exited:\n{w.process.tail()}", err=True)
     except KeyboardInterrupt:
         pass
     finally:
-        world.stop()
+        for w in started:
+            w.stop()

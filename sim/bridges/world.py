@@ -80,6 +80,9 @@ class AutopilotWorldConfig:
     #: (None: 14560 + instance); 0: no camera component
     camera_port: int | None = None
     keep_dir: bool = False  # keep the autopilot's working directory (logs) after stop
+    #: where the vehicle stands at the start (x, y); None: the episode's start cell. A fleet on
+    #: one field (`sitl --count N --one-field`) gives each world the team grid world's start
+    spawn_cell: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         if self.autopilot not in AUTOPILOTS:
@@ -103,7 +106,8 @@ class AutopilotWorldConfig:
                 "grid": self.grid.to_dict(), "episode_seed": self.episode_seed, "seed": self.seed,
                 "camera": self.camera, "camera_px": self.camera_px, "field_edge": self.field_edge, "target_step_s": self.target_step_s,
                 "api_port": self.api_port, "gcs_port": self.gcs_port, "params": dict(self.params),
-                "camera_port": self.camera_ports[1] if self.camera_ports else None}
+                "camera_port": self.camera_ports[1] if self.camera_ports else None,
+                **({} if self.spawn_cell is None else {"spawn_cell": [int(v) for v in self.spawn_cell]})}
 
     @property
     def camera_ports(self) -> tuple[int, int] | None:
@@ -120,7 +124,7 @@ class AutopilotWorld:
 
     def __init__(self, cfg: AutopilotWorldConfig) -> None:
         self.cfg = cfg
-        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s)
+        self.scene = FieldScene(cfg.grid, cfg.home, cfg.episode_seed, cfg.target_step_s, spawn_cell=cfg.spawn_cell)
         self.home = self.scene.home  # the spawn point: the autopilot's home
         self.body = MotorQuadrotor()
         self.lock = threading.Lock()

@@ -56,10 +56,19 @@ def team_rng(seed: int | None, n_agents: int) -> np.random.Generator:
 
 def team_starts(episodes: Episodes, n_agents: int) -> np.ndarray:
     """(n, N, 2) start cells: agent 0 at episodes.agent, the others uniform over the cells free
-    of the targets (at t = 0) and of the agents placed before them. Drawn for the whole draw at
-    once (the runner subsets it with the episodes), from team_rng(episodes.seed, N)."""
-    check_team(episodes, n_agents)
+    of the targets (at t = 0) and of the agents placed before them, and on a masked field's
+    searchable cells (episodes.mask; the same draws: an unmasked field's starts are unchanged).
+    Drawn for the whole draw at once (the runner subsets it with the episodes), from
+    team_rng(episodes.seed, N)."""
     cfg, n = episodes.cfg, len(episodes)
+    if episodes.mask is None and cfg.levels == 1:
+        check_team(episodes, n_agents)
+    else:  # a fleet flight's starts on a masked field or with levels: the placement's limits only
+        free = int(np.asarray(episodes.mask, bool).reshape(n, -1).sum(axis=1).min()) if episodes.mask is not None \
+            else cfg.width * cfg.height
+        if not 1 <= n_agents <= min(MAX_AGENTS, free - cfg.n_targets):
+            raise ConfigError(f"{n_agents} agents and {cfg.n_targets} targets do not fit the field's {free} "
+                              f"searchable cells (at most {MAX_AGENTS} agents)")
     h, w = cfg.height, cfg.width
     starts = np.zeros((n, n_agents, 2), np.int64)
     starts[:, 0] = episodes.agent
@@ -68,6 +77,8 @@ def team_starts(episodes: Episodes, n_agents: int) -> np.ndarray:
     tg = episodes.targets
     taken[rows[:, None], tg[..., 1] * w + tg[..., 0]] = True
     taken[rows, episodes.agent[:, 1] * w + episodes.agent[:, 0]] = True
+    if episodes.mask is not None:  # a masked field: no one starts off it
+        taken |= ~np.asarray(episodes.mask, bool).reshape(n, h * w)
     rng = team_rng(episodes.seed, n_agents)
     for k in range(1, n_agents):
         keys = rng.random((n, h * w))

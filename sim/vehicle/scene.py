@@ -61,8 +61,8 @@ class FieldScene:
             x, y = (int(v) for v in spawn_cell)
             if not (0 <= x < grid.width and 0 <= y < grid.height):
                 raise ValueError(f"spawn_cell {spawn_cell} is off the {grid.width} x {grid.height} field")
-            if polygon is not None:
-                raise ValueError("a fleet's start cells on a real field are not flown yet (spawn_cell with polygon)")
+            if self.episode.mask is not None and not self.episode.mask[0][y, x]:
+                raise ValueError(f"spawn_cell {spawn_cell} is not a searchable cell of the field")
             self.episode.agent[0] = (x, y)
         spawn_ne = cell_to_ned(self.episode.agent[0]) if polygon is None else self.frame.cell_to_ned(self.episode.agent[0])
         self.field_origin = HomePosition(field_origin.lat_deg, field_origin.lon_deg, field_origin.alt_m)

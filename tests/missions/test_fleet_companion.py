@@ -95,3 +95,43 @@ def test_run_fleet_refuses_fields_that_are_not_one_fleets(tmp_path: Path) -> Non
                                                        team=team))
     with pytest.raises(FieldFileError, match="--one-field"):
         specs_from_fields([tmp_path / "f0.json", tmp_path / "f1.json"])
+
+
+def test_a_fleet_on_a_real_field_searches_its_mask_behind_its_fence(tmp_path: Path) -> None:
+    """`sitl --count 2 --one-field --field` on a small turned paddock with a pond (6 x 7 cells,
+    36 searchable) and `run --fleet`: each vehicle starts on a searchable cell, gets the field's
+    fence, decides only over searchable cells; the team finds both targets and both land.
+    Seed 1: vehicle 0 finds both itself (the team, not its own count, ends the search)."""
+    from test_field_flight import small_field
+    from typer.testing import CliRunner
+
+    from missions.cli import app
+    from sim.field import load_field
+
+    r = CliRunner().invoke(app, ["field", str(small_field(tmp_path / "paddock.geojson")), "--heading", "-120",
+                                 "--out", str(tmp_path / "paddock")])
+    assert r.exit_code == 0, r.output
+    real = tmp_path / "paddock" / "field.json"
+    mask = load_field(str(real)).mask
+    stations = [GroundStation(14550 + 33 + k) for k in range(2)]
+    proc = uavsearch("sitl", "--instance", "33", "--count", "2", "--one-field", "--gcs-port-per-instance", "--field",
+                     str(real), "--targets", "2", "--speedup", "10", "--seed", "1", "--field-out", str(tmp_path / "f.json"))
+    lines = Lines(proc)
+    try:
+        assert lines.wait_for(f"uavsearch run --field {tmp_path / 'f-34.json'}", 60), lines.text
+        assert until(lambda: all(s.seen.armed == [False] for s in stations), 30), "every vehicle is up, disarmed"
+        run = uavsearch("run", "--fleet", str(tmp_path / "f-33.json"), str(tmp_path / "f-34.json"),
+                        "--out", str(tmp_path / "run"))
+        out, _ = run.communicate(timeout=120)
+        assert run.returncode == 0, out
+        assert "2/2 targets found by the team" in out and "0 setpoints refused" in out, out
+        assert out.count("fence: 8 vertices uploaded and read back (1 inclusion, 1 exclusion polygons)") == 2, out
+        assert until(lambda: all(s.seen.armed[:3] == [False, True, False] for s in stations), 10), \
+            [s.seen for s in stations]
+    finally:
+        stop_process(proc, 15)
+        for s in stations:
+            s.close()
+    for i in range(2):
+        cells = json.loads((tmp_path / "run" / f"vehicle-{i}" / "search_log.json").read_text())["cells"]
+        assert cells and all(mask[y][x] for x, y in cells), (i, cells)
