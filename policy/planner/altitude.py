@@ -181,6 +181,7 @@ class AltitudeRule:
         self.tiles_x, self.tiles_y = tile_edges(w, size), tile_edges(h, size)
         self.route_order: list[list[int]] = [[] for _ in range(n)]  # stop ids, the last decision's
         self.route_mode = params.route
+        self.route_now = np.zeros(n, bool)  # the last goal was the route's
         if self.route_mode == "auto":
             # the tour's looks beat the rule's where a lattice's rows of sightings come several to
             # a 7 x 7 view (20 x 20, spacing 4, seed 12345: 101.8 moves vs 109.6); on 10 x 10
@@ -304,6 +305,15 @@ class AltitudeRule:
             touring = active & ending & (belief.sighted.sum(axis=(1, 2)) > 0)
             route_now = np.zeros(self.n, bool)
             mode = self.route_mode
+            if mode == "pickups":
+                # ... and across the start of the close-up tour: where the unsighted count sits
+                # at its threshold (0.4999999 / 0.5000001) the tour and the route took turns
+                g = self.goal
+                held = touring & self.route_now & (g[:, 2] == 1) & (g[:, 0] >= 0)
+                held &= self._pick[self.rows, np.maximum(g[:, 1], 0), np.maximum(g[:, 0], 0)] > 0
+                goal[held] = g[held]
+                route_now |= held
+                touring &= ~held
             if mode != "off":
                 routing = active & ~ending
                 if routing.any():
@@ -311,8 +321,18 @@ class AltitudeRule:
                     rg, picks = self._route_goals(belief, pos[rows], level[rows], rows)
                     full = (mode == "full") | (belief.unsighted[rows] < prm.route_below)
                     ok = (rg[:, 0] >= 0) & (picks | full)
+                    if mode == "pickups":
+                        # a pickup the route chose stays the goal while it is still sighted: the
+                        # rule's look and the route's pickup must not take turns (two cells
+                        # walked back and forth: the loop below)
+                        g = self.goal[rows]
+                        keep = ~ok & self.route_now[rows] & (g[:, 2] == 1)
+                        keep &= self._pick[rows, g[:, 1], g[:, 0]] > 0
+                        rg[keep] = g[keep]
+                        ok |= keep
                     goal[rows[ok]] = rg[ok]
                     route_now[rows[ok]] = True
+            self.route_now = route_now
             if prm.pickup_tour and mode != "full":
                 # a pickup chosen: the sighted cells are visited in the order of the shortest path
                 # through all of them (not nearest first, which leaves the far end of a group)
@@ -351,6 +371,13 @@ class AltitudeRule:
             pts = np.concatenate([stops[i, ti], np.stack([cx, cy, np.ones_like(cx)], axis=1)])
             here = np.array([pos[i, 0], pos[i, 1], level[i]])
             away = ~np.all(pts == here, axis=1)  # a stop where the agent is: nothing to go to
+            # a look whose box the view from here covers already has nothing more to show: its
+            # mass stayed because the belief cannot move it (two true targets at 0.5 each beside
+            # a false alarm held at 1: the known count caps them), and going round it again
+            # looped at level 3 until t_e (1 in 2000 test episodes); the pickup refutes it
+            seen = np.zeros(len(ids), bool)
+            seen[: len(ti)] = np.all(np.abs(pts[: len(ti), :2] - here[:2]) + pts[: len(ti), 2:3] <= level[i], axis=1)
+            away &= ~seen
             ids, pts = ids[away], pts[away]
             if not len(ids):
                 self.route_order[r] = []
