@@ -21,6 +21,10 @@ pairs. For every cell g and level l:
   neighbour beyond), recomputed only when a new cell is sighted (a suffix of an optimal path
   is optimal); if it runs dry with targets left, the search goes on.
 
+- Static targets, before that (`route`, policy.planner.route): one open tour through the
+  looks still to take and the sighted cells; on lattices flown up to level 3 its first stop
+  is the goal, elsewhere it only says "this pickup now" where the tour starts with one.
+
 Moves: climb first (the higher view sees more on the way), travel, descend at the goal.
 The belief is policy.belief.BeliefState with soft evidence (policy.belief.soft).
 """
