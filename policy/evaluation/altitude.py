@@ -163,7 +163,7 @@ def write_altitude(doc: dict[str, Any], out: Path, note: str = "", command: str 
         lines += ["Command:", "", "    " + command, ""]
     det = doc["config"]["detection"]
     lines += [f"Levels L = {doc['config']['levels']}; {doc['episodes']} test episodes per cell, test seed "
-              f"{doc['seed']} (the single-height weights were tuned on seeds 777 and 4242, the altitude rule's on 777, its moving-target chase on 12345); git {doc.get('git_revision')}.",
+              f"{doc['seed']} (the single-height weights were tuned on seeds 777 and 4242, the altitude rule's on 777, its moving-target chase and its route on 12345); git {doc.get('git_revision')}.",
               "", f"Detection table: p_detect {det['p_detect']}, false alarms per cell "
               f"{det['false_alarm_per_cell']}, heights {det['height_m']} m.", ""]
     for label, rows in doc["table"].items():
@@ -187,7 +187,8 @@ PROVISIONAL_NOTE = ("Provisional table (the issue 27 brief's example, written to
 
 def main(argv: list[str] | None = None) -> None:
     """`python -m policy.evaluation.altitude --detection TABLE.json [--episodes N] [--seed S]
-    [--workers W] [--out results/altitude] [--note TEXT]`: the table of issue 27's measurement
+    [--workers W] [--out results/altitude] [--note TEXT] [--setting LABEL]... [--row ROW]...`:
+    the table of issue 27's measurement
     (a module entry point like benchmarks/: the measurement is not a user command)."""
     import argparse
     import shlex
@@ -202,10 +203,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, default=Path("results/altitude"))
     ap.add_argument("--note", default=PROVISIONAL_NOTE)
     ap.add_argument("--setting", action="append", help="settings to run (default: all)")
+    ap.add_argument("--row", action="append", choices=tuple(ROWS),
+                    help="rows to run (default: all; a ratio column needs 'belief (single height)')")
     a = ap.parse_args(argv)
     table = DetectionTable.load(a.detection)
     doc = run_altitude(table, a.levels, a.episodes, a.seed, settings=tuple(a.setting) if a.setting else None,
-                       workers=a.workers)
+                       rows=tuple(a.row) if a.row else tuple(ROWS), workers=a.workers)
     cmd = "PYTHONPATH=. python -m policy.evaluation.altitude " + shlex.join(sys.argv[1:] if argv is None else argv)
     for p in write_altitude(doc, a.out, note=a.note, command=cmd):
         print(p)
