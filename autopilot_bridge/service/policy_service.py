@@ -178,10 +178,17 @@ class PolicyService:
                 blobs = (find_blobs(frame, self.det, cam_h if levels else None) if frame is not None else [])
                 # the field's edge first: exact along its axis, it puts the frame right before the
                 # targets' lattice is weighed
-                edges = find_edges(frame, cam_h, self.det.fov_deg) if frame is not None else []
-                self.registration.register_edges(t_k, edges)
-                if frame is not None:
-                    self.registration.register_unseen_edges(t_k, edges, self.det.fov_deg)
+                if self.spec.area is None:  # the grid's rectangle: its borders are rows and columns
+                    edges = find_edges(frame, cam_h, self.det.fov_deg) if frame is not None else []
+                    self.registration.register_edges(t_k, edges)
+                    if frame is not None:
+                        self.registration.register_unseen_edges(t_k, edges, self.det.fov_deg)
+                    edge_log = [[e.axis, e.side, round(e.offset_m, 3)] for e in edges]
+                else:  # a polygon's edges, at any angle to the grid
+                    ring = self.registration.ring_edges(t_k, frame, cam_h, self.det.fov_deg) if frame is not None else []
+                    self.registration.register_ring_edges(t_k, ring)
+                    edge_log = [[e.edge, round(e.normal_ne[0], 4), round(e.normal_ne[1], 4), round(e.offset_m, 3)]
+                                for e in ring]
                 # which blobs are targets found before: once, jointly (`FoundTargets.identify`)
                 ids = self.found.identify(t_k, blobs)
                 known, rest = self.registration.register_known(t_k, blobs, ids)
@@ -209,7 +216,7 @@ class PolicyService:
             self.log.camera_height_m.append(round(float(height), 3))
             self.log.blobs.append([[round(v, 3) for v in b.offset_ne(height)] for b in blobs])
             self.log.registered.append(registered)
-            self.log.edges.append([[e.axis, e.side, round(e.offset_m, 3)] for e in edges])
+            self.log.edges.append(edge_log)
             post = self.estimator.posterior(t_k)
             exact = self.spec.visit_map == "hard"
             if not exact:  # known to the cell: the crisp visit, as the grid world's

@@ -101,7 +101,9 @@ class SearchLog:
     #: per decision: the targets' blobs registered as position measurements (0 when ambiguous)
     registered: list[int] = field(default_factory=list)
     #: per decision: the field's borders seen and registered, [axis (0 north, 1 east), side (+1
-    #: north / east border), the border's offset from the camera (m)] (autopilot_bridge.localisation.edges)
+    #: north / east border), the border's offset from the camera (m)] (autopilot_bridge.localisation.edges);
+    #: on a polygon field [the outer ring's edge, its outward normal (north, east), its offset
+    #: from the camera along it (m)] (`edges.find_ring_edges`)
     edges: list[list[list[float]]] = field(default_factory=list)
     #: what the companion learnt or changed before take-off (the autopilot, stream refusals,
     #: failsafe parameters set by --set-failsafe), a line each
