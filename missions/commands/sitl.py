@@ -171,7 +171,7 @@ def register(app: typer.Typer) -> None:
         if autopilot != Autopilot.ours:
             _real_autopilot(autopilot.value, autopilot_bin, instance, count, speedup, physics, origin, grid, seed,
                             target_step_s, field_edge, field_out, fence_radius, fence_alt, gcs_port_per_instance,
-                            key, tlog, duration, cell_m, camera_px)
+                            key, tlog, duration, cell_m, camera_px, search_grid)
             return
         vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
         if vport is None:
@@ -328,9 +328,11 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
                     physics: Physics, origin, grid, seed: int, target_step_s: float, field_edge: bool,
                     field_out: Path, fence_radius: float, fence_alt: float, gcs_port_per_instance: bool,
                     key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float,
-                    camera_px: int = 50) -> None:
+                    camera_px: int = 50, search_grid=None) -> None:
     """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
-    physics, the field file pointing the companion at the binary's API link."""
+    physics, the field file pointing the companion at the binary's API link. search_grid: the
+    grid the field file tells `run --field` to search (with the altitude levels; None: `grid`),
+    the world simulating its single-height twin (`grid`), as for our vehicle."""
     from missions.fieldfile import FieldSpec, write_field
     from missions.ports import udp_port_taken
     from sim.bridges.ardupilot_json import json_port
@@ -372,7 +374,8 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
     world = AutopilotWorld(cfg)
     address = world.companion_address()
     connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
-    write_field(field_out, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
+    write_field(field_out, FieldSpec(origin, search_grid or grid, cell_m, connect, n, "pybullet", field_edge,
+                                     dialect=autopilot,
                                      autopilot=autopilot, camera=world.camera_address(),
                                      launch_ne=tuple(float(v) for v in world.scene.spawn_ne)),
                 seed + n, sitl=cfg.to_dict())
@@ -383,6 +386,9 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
                    f"{cfg.camera_ports[1]} (run --camera {world.camera_address()})")
     typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
                f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m")
+    if search_grid is not None and search_grid.levels > 1:
+        typer.echo(f"    levels              {search_grid.levels} (heights {_heights(search_grid.levels)} m over home, "
+                   f"flown on {autopilot}'s own height estimate)")
 
     def terminate(_signum: int, _frame: object) -> None:
         raise KeyboardInterrupt
