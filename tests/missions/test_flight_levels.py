@@ -56,8 +56,7 @@ def test_a_real_autopilot_climbs_and_descends_the_levels(tmp_path: Path, autopil
     the frames read at it come from the autopilot's own estimate (ArduCopter's EKF3, PX4's
     baro-held EKF2), and the search is the grid world's on the same episode."""
     grid = GridConfig(width=10, height=10, n_targets=3, levels=3)
-    r = fly_search(tmp_path, seed=1, speedup=10.0 if autopilot == "ardupilot" else 5.0, grid=grid,
-                   autopilot=autopilot, plot=False)
+    r = fly_search(tmp_path, seed=1, speedup=5.0, grid=grid, autopilot=autopilot, plot=False)  # as flight-table flies them
     assert r["error"] is None, r["error"]
     assert r["truly_found"] == r["believed_found"] == 3
     assert r["moves"] == r["grid_moves"], (r["moves"], r["grid_moves"])
@@ -66,3 +65,18 @@ def test_a_real_autopilot_climbs_and_descends_the_levels(tmp_path: Path, autopil
     for lv, h in zip(levels, heights, strict=True):
         assert abs(h - (level_height_m(lv) - 0.06)) < 0.4, (lv, h)
     assert r["schedule_slips"] == 0
+
+
+def test_flight_table_levels_refuse_only_what_is_not_flown(tmp_path: Path) -> None:
+    """A real autopilot flies --levels (the test above); what is still refused names its option:
+    the video camera, --baseline-levels beside a real autopilot, a polygon field."""
+    from typer.testing import CliRunner
+
+    from missions.cli import app
+
+    runner = CliRunner()
+    for extra, hint in ((["--camera", "video"], "--levels"),
+                        (["--autopilot", "ardupilot", "--baseline-levels", "1"], "--baseline-levels"),
+                        (["--field", "examples/fields/out/farm_barn/field.json"], "--levels")):
+        r = runner.invoke(app, ["flight-table", "--levels", "2", *extra, "--out", str(tmp_path)])
+        assert r.exit_code == 2 and hint in r.output, (extra, r.output)
