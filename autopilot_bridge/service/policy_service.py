@@ -257,7 +257,9 @@ class PolicyService:
                 far = [] if levels else [
                     far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
                     for b, i in zip(blobs, ids, strict=True) if b.beyond_view(height) and i is None]
-            if self.spec.area is not None:  # masked cells read like off-map ones, as in the grid world
+            if self.spec.area is not None and not levels:  # masked cells read like off-map ones, as in the grid world
+                # (with levels the grid world's window shows the grid's bounds only: the mask
+                # reaches the policy by the observation's mask and valid moves, `_level_observation`)
                 view[1] = field_view_blocked(self.spec.area, cell)
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
@@ -328,10 +330,16 @@ class PolicyService:
         moves (climb, descend), and the believed cell taken as exact (the soft-evidence belief,
         policy.belief.soft, takes exact positions: the registered camera is within a cell)."""
         g = self.spec.grid
+        maps, valid = self.pmap.policy_map(g.map_variant), level_valid_moves(cell, level, g)
+        area = self.spec.area
+        if area is not None:  # a polygon field: masked cells read as visited, a move into one is off the map
+            maps, moves = field_map_valid(area, maps, g.map_variant, cell, 4)
+            valid[:4] &= moves
         return Observation(
             views=level_view(view, level, g.levels, cell, g.width, g.height)[None],
-            maps=self.pmap.policy_map(g.map_variant)[None], positions=cell[None].astype(np.int64),
-            valid=level_valid_moves(cell, level, g)[None], t=np.array([move]), active=np.array([True]),
+            maps=maps[None], positions=cell[None].astype(np.int64),
+            valid=valid[None], t=np.array([move]), active=np.array([True]),
+            mask=None if area is None else area.mask[None],
             found_now=np.array([float(found_now)]), level=np.array([level], np.int64))
 
     def _centred_cell(self, t: float, cell: np.ndarray) -> np.ndarray:

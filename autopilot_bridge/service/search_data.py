@@ -77,8 +77,6 @@ class SearchSpec:
         if self.area is not None and self.area.mask.shape != (self.grid.height, self.grid.width):
             raise ValueError(f"the field's mask is {self.area.mask.shape[1]} x {self.area.mask.shape[0]} cells, "
                              f"the grid {self.grid.width} x {self.grid.height}")
-        if self.area is not None and self.grid.levels > 1:
-            raise ValueError(f"a real field is flown at one height for now (levels {self.grid.levels} with a field)")
 
     def camera_height(self) -> float:
         """The camera's height over the (flat) field: the autopilot holds the commanded height

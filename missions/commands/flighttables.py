@@ -87,9 +87,9 @@ def register(app: typer.Typer) -> None:
             if baseline_levels is not None and autopilot != "ours":
                 raise typer.BadParameter("--baseline-levels flies our SITL (a real autopilot flies --levels alone)",
                                          param_hint="--baseline-levels")
-            if field is not None:
-                raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
-                                         param_hint="--levels")
+            if field is not None and baseline_levels is not None:
+                raise typer.BadParameter("--baseline-levels flies a rectangle (fly --field with --levels alone)",
+                                         param_hint="--baseline-levels")
             with_levels(GridConfig(), levels, detection)  # a bad table is a usage error naming it
         command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["flight-table"] else \
             "python -m missions flight-table"

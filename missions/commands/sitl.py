@@ -157,9 +157,6 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(str(e)) from e
         # altitude levels: the field file tells `run --field` to fly them; the vehicle's world is
         # the same (the camera renders at any height), its frame checked to cover the top window
-        if pf is not None and levels > 1:
-            raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
-                                     param_hint="--levels")
         search_grid = _with_levels(grid, levels, detection)
         # the fence must hold the whole field seen from any spawn cell: its diagonal, and a margin
         diagonal = float(np.hypot(width, height)) * cell_m

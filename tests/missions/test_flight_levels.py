@@ -69,7 +69,7 @@ def test_a_real_autopilot_climbs_and_descends_the_levels(tmp_path: Path, autopil
 
 def test_flight_table_levels_refuse_only_what_is_not_flown(tmp_path: Path) -> None:
     """A real autopilot flies --levels (the test above); what is still refused names its option:
-    the video camera, --baseline-levels beside a real autopilot, a polygon field."""
+    the video camera, --baseline-levels beside a real autopilot or a polygon field."""
     from typer.testing import CliRunner
 
     from missions.cli import app
@@ -77,6 +77,7 @@ def test_flight_table_levels_refuse_only_what_is_not_flown(tmp_path: Path) -> No
     runner = CliRunner()
     for extra, hint in ((["--camera", "video"], "--levels"),
                         (["--autopilot", "ardupilot", "--baseline-levels", "1"], "--baseline-levels"),
-                        (["--field", "examples/fields/out/farm_barn/field.json"], "--levels")):
+                        (["--field", "examples/fields/out/farm_barn/field.json", "--baseline-levels", "1"],
+                         "--baseline-levels")):
         r = runner.invoke(app, ["flight-table", "--levels", "2", *extra, "--out", str(tmp_path)])
         assert r.exit_code == 2 and hint in r.output, (extra, r.output)
