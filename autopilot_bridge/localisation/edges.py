@@ -173,9 +173,10 @@ def ring_normals(ring: np.ndarray) -> np.ndarray:
 
 
 def _pixel_ground_ne(h: int, w: int, camera_height_m: float, fov_deg: float) -> np.ndarray:
-    """(h, w, 2): where each pixel samples the ground, (ahead, right) metres from the nadir: the
-    renderer samples half a pixel ahead-left of the pixel's centre... taken here as the rows and
-    columns reading found it (SHIFT_PX: the borders read half a pixel north-east)."""
+    """(h, w, 2): where each pixel samples the ground, (ahead, right) metres from the nadir: its
+    centre moved SHIFT_PX back and left, as the rows-and-columns reading measured it (borders
+    read at the pixels' centres lay half a pixel ahead and right of the truth on every side;
+    rendered slanted edges read so: 0.005 m mean error)."""
     k = ground_px_per_m(camera_height_m, w, fov_deg)
     north = (h / 2 - np.arange(h) - 0.5 - SHIFT_PX) / k
     east = (np.arange(w) + 0.5 - SHIFT_PX - w / 2) / k
