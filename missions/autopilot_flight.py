@@ -42,7 +42,10 @@ def hold_instance(lock_dir: Path | None = None) -> Iterator[int]:
         except OSError:
             f.close()
             continue
-        if not (_udp_free(14540 + n) and _udp_free(14560 + n)):
+        # the companion's and the camera component's ports (sim.bridges.world: 14600 + n is the
+        # camera's own, which our SITL's API link takes at instance n + 20: a test flying
+        # instance 21 beside this one made the camera's bind fail and the flight time out)
+        if not (_udp_free(14540 + n) and _udp_free(14560 + n) and _udp_free(14600 + n)):
             f.close()
             continue
         try:

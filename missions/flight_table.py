@@ -208,8 +208,8 @@ def flight_vs_grid(seeds: list[int], out: Path, workers: int = 2, speedup: float
     its field.json, named by its folder)."""
     from missions.flight_policy import FLIGHT_POLICY
 
-    if field is not None and (size is not None or levels != 1):
-        raise ValueError("a real field sets its own grid and flies one height (no size, no levels)")
+    if field is not None and size is not None:
+        raise ValueError("a real field sets its own grid (no size)")
     t0 = time.monotonic()
     fpath = None if field is None else str(Path(field))
     rows = fly_many([FlightJob(s, speedup, policy=policy, max_moves=max_moves, autopilot=autopilot, camera=camera,

@@ -260,6 +260,18 @@ class GpsEstimator:
         self._linear_update(h, z, np.eye(m) * sd_m**2)
         self._reduce()
 
+    def observe_along(self, t: float, direction_ne: np.ndarray, value: float, sd_m: float) -> None:
+        """Fuse a measurement of the true position's component along a horizontal unit direction
+        (north, east; no GPS bias in it): a polygon field's edge at an angle to the grid, seen in
+        a frame, says how far the camera is from its line, and nothing along it. Times before
+        the last fused fix are taken as now."""
+        u = _unit(direction_ne)
+        z = self._measurement_at(t, np.array([value]), sd_m, "position along a direction")
+        h = np.zeros((1, 9))
+        h[0, :2] = u
+        self._linear_update(h, z, np.eye(1) * sd_m**2)
+        self._reduce()
+
     def observe_reading(self, t: float, reading_ne: np.ndarray, sd_m: float) -> None:
         """Fuse the autopilot's own position estimate (north, east) as a measurement of
         position + bias: its EKF smooths the receiver's white noise out with the inertial
@@ -365,6 +377,17 @@ class GpsEstimator:
             p[:, i, i + 6] -= v
             p[:, i + 6, i] -= v
 
+    def doubt_split_along(self, sd_m: float, direction_ne: np.ndarray) -> None:
+        """`doubt_split` along a horizontal unit direction (north, east): an edge of the field at
+        an angle that contradicts the posterior doubts the split across that edge only."""
+        u = _unit(direction_ne)
+        d = sd_m**2 * np.outer(u, u)
+        p = self._p
+        p[:, :2, :2] += d
+        p[:, 6:8, 6:8] += d
+        p[:, :2, 6:8] -= d
+        p[:, 6:8, :2] -= d
+
     @property
     def bias_ned(self) -> np.ndarray:
         """The estimated GPS bias (north, east, down): what the autopilot's own GPS-fed estimate
@@ -418,3 +441,12 @@ def _moments(w: np.ndarray, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, n
     mean = w @ x
     d = x - mean
     return mean, np.einsum("n,nij->ij", w, p) + np.einsum("n,ni,nj->ij", w, d, d)
+
+
+def _unit(direction_ne: np.ndarray) -> np.ndarray:
+    """(north, east) -> the same direction at unit length; a zero or non-finite one is refused."""
+    u = np.asarray(direction_ne, dtype=float).reshape(2)
+    n = float(np.hypot(*u))
+    if not (math.isfinite(n) and n > 1e-9):
+        raise ValueError(f"a direction must be a finite, non-zero (north, east) vector (got {u})")
+    return u / n

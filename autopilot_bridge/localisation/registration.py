@@ -22,7 +22,7 @@ from ..detection.found import FOUND_M, FoundTargets
 from ..detection.view import blob_cells
 from ..link.connection import VehicleLink
 from ..service.search_data import SearchSpec
-from .edges import EdgeSighting, border_ne, half_footprint_m
+from .edges import EdgeSighting, RingEdgeSighting, border_ne, find_ring_edges, half_footprint_m
 from .estimator import GpsEstimator
 from .team_finds import TeamFoundTargets
 from .telemetry import READING_SD_M, TelemetryIntake
@@ -113,28 +113,54 @@ class Registration:
         """The field's borders seen in the frame: each measures where the camera truly is along
         its axis (the border's place less its offset from the nadir), exactly, whatever the
         targets do (moving herds too). Fused before the targets, so the lattice's hypotheses
-        are weighed against a frame the edge has already put right. Returns how many."""
-        if not self.spec.register or not edges:
+        are weighed against a frame the edge has already put right. The grid's rectangle only: a
+        polygon's edges are read at any angle (`register_ring_edges`). Returns how many."""
+        if not self.spec.register or not edges or self.spec.area is not None:
             return 0
         g, height = self.spec.grid, self.camera_height()
         used = 0
-        area = self.spec.area
         for e in edges:
             sd = _edge_sd(e.offset_m, height)
             post = self.estimator.posterior(t)
-            if area is None:
-                z = border_ne(e.axis, e.side, g.width, g.height) - e.offset_m
-            else:  # a polygon's edge: the one along this axis the frame shows, near where the posterior puts it
-                border = area.border_along(e.axis, e.side, post.mean_ned[:2], e.offset_m, half_footprint_m(height))
-                if border is None:
-                    continue
-                z = border - e.offset_m
+            z = border_ne(e.axis, e.side, g.width, g.height) - e.offset_m
             r = z - float(post.mean_ned[e.axis])
             if r * r > EDGE_DOUBT**2 * (float(post.horizontal_cov[e.axis, e.axis]) + sd**2):
                 self.estimator.doubt_split(abs(r), (e.axis,))
             self.estimator.observe_position(t, np.array([z]), sd, (e.axis,))
             used += 1
         return used
+
+    def ring_edges(self, t: float, frame: np.ndarray, camera_height_m: float, fov_deg: float) -> list[RingEdgeSighting]:
+        """A polygon field's edges seen in the frame (the camera this high), at any angle
+        (`edges.find_ring_edges`), looked for about where the posterior puts the camera at t;
+        [] on the rectangle."""
+        area = self.spec.area
+        if not self.spec.register or area is None:
+            return []
+        return find_ring_edges(frame, camera_height_m, area.outer_grid, self.estimator.posterior(t).mean_ned[:2],
+                               fov_deg)
+
+    def register_ring_edges(self, t: float, edges: list[RingEdgeSighting]) -> int:
+        """A polygon field's edges seen in the frame: each measures how far the camera truly is
+        from its line, across it (the edge's place along its normal less its offset from the
+        nadir), and nothing along it: one measurement along the edge's normal, whatever its
+        angle to the grid. Before, only the edges along a grid axis were read (the farm: one of
+        five; flight seed 9 then went 40 decisions uncorrected along the slanted sides and
+        truly 1.28 m past the ring). Doubted as a border is (EDGE_DOUBT). Returns how many."""
+        area = self.spec.area
+        if not self.spec.register or not edges or area is None:
+            return 0
+        height = self.camera_height()
+        for e in edges:
+            n = np.asarray(e.normal_ne, dtype=float)
+            sd = _edge_sd(e.offset_m, height)
+            post = self.estimator.posterior(t)
+            z = float(n @ area.outer_grid[e.edge]) - e.offset_m
+            r = z - float(n @ post.mean_ned[:2])
+            if r * r > EDGE_DOUBT**2 * (float(n @ post.horizontal_cov @ n) + sd**2):
+                self.estimator.doubt_split_along(abs(r), n)
+            self.estimator.observe_along(t, n, z, sd)
+        return len(edges)
 
     def register_unseen_edges(self, t: float, edges: list[EdgeSighting], fov_deg: float) -> None:
         """The borders not seen in a frame are further from the camera than it reaches: each

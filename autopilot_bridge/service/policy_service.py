@@ -178,10 +178,17 @@ class PolicyService:
                 blobs = (find_blobs(frame, self.det, cam_h if levels else None) if frame is not None else [])
                 # the field's edge first: exact along its axis, it puts the frame right before the
                 # targets' lattice is weighed
-                edges = find_edges(frame, cam_h, self.det.fov_deg) if frame is not None else []
-                self.registration.register_edges(t_k, edges)
-                if frame is not None:
-                    self.registration.register_unseen_edges(t_k, edges, self.det.fov_deg)
+                if self.spec.area is None:  # the grid's rectangle: its borders are rows and columns
+                    edges = find_edges(frame, cam_h, self.det.fov_deg) if frame is not None else []
+                    self.registration.register_edges(t_k, edges)
+                    if frame is not None:
+                        self.registration.register_unseen_edges(t_k, edges, self.det.fov_deg)
+                    edge_log = [[e.axis, e.side, round(e.offset_m, 3)] for e in edges]
+                else:  # a polygon's edges, at any angle to the grid
+                    ring = self.registration.ring_edges(t_k, frame, cam_h, self.det.fov_deg) if frame is not None else []
+                    self.registration.register_ring_edges(t_k, ring)
+                    edge_log = [[e.edge, round(e.normal_ne[0], 4), round(e.normal_ne[1], 4), round(e.offset_m, 3)]
+                                for e in ring]
                 # which blobs are targets found before: once, jointly (`FoundTargets.identify`)
                 ids = self.found.identify(t_k, blobs)
                 known, rest = self.registration.register_known(t_k, blobs, ids)
@@ -209,7 +216,7 @@ class PolicyService:
             self.log.camera_height_m.append(round(float(height), 3))
             self.log.blobs.append([[round(v, 3) for v in b.offset_ne(height)] for b in blobs])
             self.log.registered.append(registered)
-            self.log.edges.append([[e.axis, e.side, round(e.offset_m, 3)] for e in edges])
+            self.log.edges.append(edge_log)
             post = self.estimator.posterior(t_k)
             exact = self.spec.visit_map == "hard"
             if not exact:  # known to the cell: the crisp visit, as the grid world's
@@ -250,7 +257,9 @@ class PolicyService:
                 far = [] if levels else [
                     far_likelihood(b, where, post.horizontal_cov, cell, height, g.width, g.height)
                     for b, i in zip(blobs, ids, strict=True) if b.beyond_view(height) and i is None]
-            if self.spec.area is not None:  # masked cells read like off-map ones, as in the grid world
+            if self.spec.area is not None and not levels:  # masked cells read like off-map ones, as in the grid world
+                # (with levels the grid world's window shows the grid's bounds only: the mask
+                # reaches the policy by the observation's mask and valid moves, `_level_observation`)
                 view[1] = field_view_blocked(self.spec.area, cell)
             self.log.seen.append(view[0].astype(int).tolist())
             if frame is not None:
@@ -323,10 +332,16 @@ class PolicyService:
         moves (climb, descend), and the believed cell taken as exact (the soft-evidence belief,
         policy.belief.soft, takes exact positions: the registered camera is within a cell)."""
         g = self.spec.grid
+        maps, valid = self.pmap.policy_map(g.map_variant), level_valid_moves(cell, level, g)
+        area = self.spec.area
+        if area is not None:  # a polygon field: masked cells read as visited, a move into one is off the map
+            maps, moves = field_map_valid(area, maps, g.map_variant, cell, 4)
+            valid[:4] &= moves
         return Observation(
             views=level_view(view, level, g.levels, cell, g.width, g.height)[None],
-            maps=self.pmap.policy_map(g.map_variant)[None], positions=cell[None].astype(np.int64),
-            valid=level_valid_moves(cell, level, g)[None], t=np.array([move]), active=np.array([True]),
+            maps=maps[None], positions=cell[None].astype(np.int64),
+            valid=valid[None], t=np.array([move]), active=np.array([True]),
+            mask=None if area is None else area.mask[None],
             found_now=np.array([float(found_now)]), level=np.array([level], np.int64))
 
     def _centred_cell(self, t: float, cell: np.ndarray) -> np.ndarray:

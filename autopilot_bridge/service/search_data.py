@@ -77,8 +77,6 @@ class SearchSpec:
         if self.area is not None and self.area.mask.shape != (self.grid.height, self.grid.width):
             raise ValueError(f"the field's mask is {self.area.mask.shape[1]} x {self.area.mask.shape[0]} cells, "
                              f"the grid {self.grid.width} x {self.grid.height}")
-        if self.area is not None and self.grid.levels > 1:
-            raise ValueError(f"a real field is flown at one height for now (levels {self.grid.levels} with a field)")
 
     def camera_height(self) -> float:
         """The camera's height over the (flat) field: the autopilot holds the commanded height
@@ -101,7 +99,9 @@ class SearchLog:
     #: per decision: the targets' blobs registered as position measurements (0 when ambiguous)
     registered: list[int] = field(default_factory=list)
     #: per decision: the field's borders seen and registered, [axis (0 north, 1 east), side (+1
-    #: north / east border), the border's offset from the camera (m)] (autopilot_bridge.localisation.edges)
+    #: north / east border), the border's offset from the camera (m)] (autopilot_bridge.localisation.edges);
+    #: on a polygon field [the outer ring's edge, its outward normal (north, east), its offset
+    #: from the camera along it (m)] (`edges.find_ring_edges`)
     edges: list[list[list[float]]] = field(default_factory=list)
     #: what the companion learnt or changed before take-off (the autopilot, stream refusals,
     #: failsafe parameters set by --set-failsafe), a line each

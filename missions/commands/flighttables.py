@@ -82,11 +82,14 @@ def register(app: typer.Typer) -> None:
                                          param_hint="--field")
             size = (width or 10, height or 10, targets or 5)
         if levels > 1 or detection is not None or baseline_levels is not None:
-            if autopilot != "ours" or camera != "mavlink":
-                raise typer.BadParameter("altitude levels fly our SITL with its MAVLink camera", param_hint="--levels")
-            if field is not None:
-                raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
-                                         param_hint="--levels")
+            if camera != "mavlink":  # our SITL, ArduCopter and PX4 alike: the MAVLink camera's frames
+                raise typer.BadParameter("altitude levels are flown with the MAVLink camera", param_hint="--levels")
+            if baseline_levels is not None and autopilot != "ours":
+                raise typer.BadParameter("--baseline-levels flies our SITL (a real autopilot flies --levels alone)",
+                                         param_hint="--baseline-levels")
+            if field is not None and baseline_levels is not None:
+                raise typer.BadParameter("--baseline-levels flies a rectangle (fly --field with --levels alone)",
+                                         param_hint="--baseline-levels")
             with_levels(GridConfig(), levels, detection)  # a bad table is a usage error naming it
         command = "uavsearch " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["flight-table"] else \
             "python -m missions flight-table"

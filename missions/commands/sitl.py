@@ -157,9 +157,6 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(str(e)) from e
         # altitude levels: the field file tells `run --field` to fly them; the vehicle's world is
         # the same (the camera renders at any height), its frame checked to cover the top window
-        if pf is not None and levels > 1:
-            raise typer.BadParameter("a real field is flown at one height for now (no --levels with --field)",
-                                     param_hint="--levels")
         if one_field and count > 1 and levels > 1:
             raise typer.BadParameter("a fleet on one field flies one height's cells for now (docs/fleet_flight.md)",
                                      param_hint="--levels")
@@ -174,7 +171,7 @@ def register(app: typer.Typer) -> None:
         if autopilot != Autopilot.ours:
             _real_autopilot(autopilot.value, autopilot_bin, instance, count, speedup, physics, origin, grid, seed,
                             target_step_s, field_edge, field_out, fence_radius, fence_alt, gcs_port_per_instance,
-                            key, tlog, duration, cell_m, camera_px, one_field=one_field)
+                            key, tlog, duration, cell_m, camera_px, one_field=one_field, search_grid=search_grid)
             return
         vport = 0 if video_port.strip().lower() in ("0", "none", "off", "") else None
         if vport is None:
@@ -335,12 +332,15 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
                     physics: Physics, origin, grid, seed: int, target_step_s: float, field_edge: bool,
                     field_out: Path, fence_radius: float, fence_alt: float, gcs_port_per_instance: bool,
                     key: bytes | None, tlog: Path | None, duration: float | None, cell_m: float,
-                    camera_px: int = 50, one_field: bool = False) -> None:
+                    camera_px: int = 50, one_field: bool = False, search_grid=None) -> None:
     """`sitl --autopilot ardupilot|px4`: our world (body, field, targets) as the real binary's
     physics, the field file pointing the companion at the binary's API link. With `--count N
     --one-field`: N binaries (instances I..I+N-1: their own physics, API, camera and GCS ports,
     system ids I+1...), each flying a world of its own on the one episode from the team grid
-    world's start cell, all in this process; one field file each for `run --fleet`."""
+    world's start cell, all in this process; one field file each for `run --fleet`.
+    search_grid: the grid the field file tells `run --field` to search (with the altitude
+    levels; None: `grid`), the world simulating its single-height twin (`grid`), as for our
+    vehicle."""
     from missions.fieldfile import FieldSpec, write_field
     from missions.ports import udp_port_taken
     from sim.bridges.ardupilot_json import json_port
@@ -391,7 +391,7 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
         connect = address.replace("udpin:127.0.0.1:", "udpin:0.0.0.0:")
         fpath = field_out if not fleet else field_out.with_name(f"{field_out.stem}-{n}{field_out.suffix or '.json'}")
         paths.append(fpath)
-        write_field(fpath, FieldSpec(origin, grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
+        write_field(fpath, FieldSpec(origin, search_grid or grid, cell_m, connect, n, "pybullet", field_edge, dialect=autopilot,
                                      autopilot=autopilot, camera=world.camera_address(),
                                      launch_ne=tuple(float(v) for v in world.scene.spawn_ne),
                                      team=count if fleet else None),
@@ -404,6 +404,9 @@ def _real_autopilot(autopilot: str, binary: Path | None, instance: int, count: i
         typer.echo(f"    field               {grid.width} x {grid.height} cells of {cell_m:g} m, {grid.n_targets} targets; "
                    f"cell (0, 0) at {origin.lat_deg:.7f}, {origin.lon_deg:.7f}, {origin.alt_m:g} m"
                    + ("" if starts is None else f"; starts on cell {tuple(starts[k])}"))
+        if search_grid is not None and search_grid.levels > 1:
+            typer.echo(f"    levels              {search_grid.levels} (heights {_heights(search_grid.levels)} m over home, "
+                       f"flown on {autopilot}'s own height estimate)")
     if fleet:
         typer.echo(f"fleet              uavsearch run --fleet {' '.join(str(p) for p in paths)}")
 

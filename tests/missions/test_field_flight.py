@@ -50,3 +50,26 @@ def test_a_search_inside_a_turned_field_with_a_pond_stays_on_it(tmp_path: Path) 
     log = json.loads((tmp_path / "flight" / "search_log.json").read_text())
     assert r["nees_mean"] is not None and r["nees_mean"] < 6.0
     assert any(log["edges"]), "the paddock's edge seen and registered"
+
+
+def test_altitude_levels_inside_a_field_climb_and_descend_on_it(tmp_path: Path) -> None:
+    """Levels on a polygon field (issue 27 with 28): the climbs and descents keep the cell, the
+    policy gets the field's mask (its moves off the mask invalid, masked cells read as visited)
+    and the height flown; every decision is over a searchable cell, the vehicle on the field."""
+    from sim.gridworld import level_height_m
+
+    # 26 x 22 m (13 x 11 cells): on the 14 x 12 m paddock the planner never climbs
+    field = read_field_file(str(small_field(tmp_path / "paddock.geojson", a=26.0, b=22.0)), heading_deg=-120.0)
+    r = fly_search(tmp_path / "flight", seed=1, speedup=30.0, grid=GridConfig(n_targets=3, levels=2), field=field,
+                   free_ports=True, plot=False)
+    assert r["error"] is None, r["error"]
+    assert r["truly_found"] == r["believed_found"] == 3
+    assert all(field.mask[y, x] for x, y in r["cells"]), "every decision over a searchable cell"
+    levels, heights = r["levels_flown"], r["camera_height_m"]
+    assert 2 in levels and levels[0] == 1, levels
+    for lv, h in zip(levels, heights, strict=True):
+        assert abs(h - (level_height_m(lv) - 0.06)) < 0.4, (lv, h)
+    c = r["field_checks"]
+    assert (c["setpoints_outside_fence"], c["setpoints_off_field"], c["breaches"]) == (0, 0, 0), c
+    assert c["true_off_field_max_m"] < 0.5, c
+    assert r["moves"] <= 1.5 * max(r["grid_moves"], 1), (r["moves"], r["grid_moves"])  # measured: 36 = 36

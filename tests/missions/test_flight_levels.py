@@ -40,3 +40,19 @@ def test_a_search_with_three_levels_flies_the_grid_worlds(tmp_path: Path) -> Non
     assert r["schedule_slips"] == 0 and r["late_frames"] == 0
     # a decision every 4 simulated s, climbs and descents included (and a centring on a target at level 1)
     assert 4.0 * r["moves"] <= r["search_s"] <= 4.0 * (r["moves"] + 2 * 3)
+
+
+def test_flight_table_levels_refuse_only_what_is_not_flown(tmp_path: Path) -> None:
+    """A real autopilot flies --levels (the test above); what is still refused names its option:
+    the video camera, --baseline-levels beside a real autopilot or a polygon field."""
+    from typer.testing import CliRunner
+
+    from missions.cli import app
+
+    runner = CliRunner()
+    for extra, hint in ((["--camera", "video"], "--levels"),
+                        (["--autopilot", "ardupilot", "--baseline-levels", "1"], "--baseline-levels"),
+                        (["--field", "examples/fields/out/farm_barn/field.json", "--baseline-levels", "1"],
+                         "--baseline-levels")):
+        r = runner.invoke(app, ["flight-table", "--levels", "2", *extra, "--out", str(tmp_path)])
+        assert r.exit_code == 2 and hint in r.output, (extra, r.output)

@@ -269,3 +269,32 @@ def test_a_bound_weighs_the_lattice_hypotheses_and_trims_each() -> None:
     assert est.mean[1] == pytest.approx(m0 - 1.0, abs=0.15)
     with pytest.raises(ValueError):
         est.observe_bound(est.time_s, 0, 1.0, True, 0.0)
+
+
+def test_a_measurement_along_a_slanted_direction_moves_the_position_across_it_only() -> None:
+    """A polygon's edge at an angle measures how far the camera is from its line: the posterior
+    moves along the edge's normal to it and keeps its doubt along the edge; doubting the split
+    along a direction is doubt_split along an axis when the direction is one, and keeps the
+    doubt on what the receiver measures."""
+    est = _standing(5)
+    n = np.array([np.cos(0.6), np.sin(0.6)])
+    along = np.array([-n[1], n[0]])
+    before = est.posterior()
+    est.doubt_split_along(2.0, n)
+    q = est.cov
+    assert n @ q[:2, :2] @ n == pytest.approx(n @ before.horizontal_cov @ n + 4.0)
+    assert along @ q[:2, :2] @ along == pytest.approx(along @ before.horizontal_cov @ along)
+    var_sum = lambda m, u: u @ (m[:2, :2] + m[6:8, 6:8] + m[:2, 6:8] + m[6:8, :2]) @ u  # noqa: E731
+    assert var_sum(q, n) == pytest.approx(var_sum(est.cov, n))
+    truth = before.mean_ned[:2] + 1.5 * n
+    est.observe_along(est.time_s, n, float(n @ truth), 0.05)
+    post = est.posterior()
+    assert abs(n @ post.mean_ned[:2] - n @ truth) < 0.05 and n @ post.horizontal_cov @ n < 0.06**2
+    assert abs(along @ (post.mean_ned[:2] - before.mean_ned[:2])) < 0.3  # hardly moved along the edge
+    assert along @ post.horizontal_cov @ along > 0.5 * (along @ before.horizontal_cov @ along)
+    other = copy.deepcopy(est)
+    est.doubt_split_along(1.0, np.array([0.0, 3.0]))  # not a unit vector: its direction
+    other.doubt_split(1.0, (1,))
+    np.testing.assert_allclose(est.cov, other.cov, atol=1e-12)
+    with pytest.raises(ValueError, match="direction"):
+        est.observe_along(est.time_s, np.zeros(2), 0.0, 0.1)
