@@ -47,6 +47,22 @@ MATCH_SD_M = 0.3
 CUT_SD_M = 0.6
 
 
+def same_or_new(same: np.ndarray, new: np.ndarray, floor: float | None = None) -> list[int | None]:
+    """Each sighting (row j) as one of the k known targets or as a new one, one to one, the
+    likeliest joint assignment (`linear_sum_assignment`): same (m, k) the log-likelihoods that
+    sighting j is target i, new (m,) that it is a target not yet known (a column of its own).
+    floor: a pairing at or below it counts as new (a score that means "impossible")."""
+    m, k = same.shape
+    score = np.full((m, k + m), -1e9)
+    score[:, :k] = same
+    score[np.arange(m), k + np.arange(m)] = new
+    rows, cols = linear_sum_assignment(-score)
+    out: list[int | None] = [None] * m
+    for j, c in zip(rows, cols, strict=True):
+        out[int(j)] = int(c) if c < k and (floor is None or same[int(j), int(c)] > floor) else None
+    return out
+
+
 def lattice_p(r: np.ndarray, s2: np.ndarray, cell_m: float = 2.0) -> np.ndarray:
     """Per axis: the probability of the nearest lattice point (r from the position estimate,
     variance s2 about it) against the next one on either side along that axis. (The next one
@@ -201,15 +217,7 @@ class FoundTargets:
                 same[j, i] = norm - 0.5 * float(np.sum(d * d / v))
                 other = norm - 0.5 * float(np.sum((d - _NEIGHBOURS) ** 2 / v, axis=1).min()) + log_prior
                 new[j] = max(new[j], other)
-        # each sighting: one of the found targets, or new (a column of its own)
-        score = np.full((m, k + m), -1e9)
-        score[:, :k] = same
-        score[np.arange(m), k + np.arange(m)] = new
-        rows, cols = linear_sum_assignment(-score)
-        out: list[int | None] = [None] * m
-        for j, c in zip(rows, cols, strict=True):
-            out[int(j)] = int(c) if c < k else None
-        return out
+        return same_or_new(same, new)
 
     def told_cells(self, t: float, blobs: list[Blob],
                    ids: list[int | None] | None = None) -> list[tuple[int, int] | None]:

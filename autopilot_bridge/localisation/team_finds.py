@@ -34,10 +34,9 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..detection.detector import Blob
-from ..detection.found import _NEIGHBOURS, CUT_SD_M, FOUND_M, MATCH_SD_M, FoundTargets
+from ..detection.found import _NEIGHBOURS, CUT_SD_M, FOUND_M, MATCH_SD_M, FoundTargets, same_or_new
 from ..service.search_data import SearchSpec
 from .edges import half_footprint_m
 from .estimator import GpsEstimator
@@ -243,14 +242,7 @@ class TeamFoundTargets(FoundTargets):
         with np.errstate(divide="ignore"):
             same = np.where(same_l > 0, np.log(same_l), -1e9)
             new = np.maximum(np.log(new_l), -1e8)
-        score = np.full((m, k + m), -1e9)
-        score[:, :k] = same
-        score[np.arange(m), k + np.arange(m)] = new
-        rows, cols = linear_sum_assignment(-score)
-        out: list[int | None] = [None] * m
-        for j, c in zip(rows, cols, strict=True):
-            out[int(j)] = int(c) if c < k and same[int(j), int(c)] > -1e9 else None
-        return out
+        return same_or_new(same, new, floor=-1e9)
 
     def team_landmark(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Teammate's find i (an id from `identify`): where it stands (field north, east) and that
