@@ -57,6 +57,27 @@ def vote(pos: np.ndarray, visited: np.ndarray, rng: np.random.Generator) -> np.n
     return out
 
 
+def queue_step(queue: np.ndarray, qlen: np.ndarray, fallback: np.ndarray, count: np.ndarray, pos: np.ndarray,
+               act: np.ndarray, new_cell: np.ndarray, alpha: int) -> None:
+    """One step of the paper's loop rule over rows, in place (LoopGuard's episodes, a team's
+    agents): a row in the fallback whose move reached an unvisited cell (new_cell) leaves it with
+    an empty queue; a row under its policy queues its cell in a ring of queue.shape[1] and enters
+    the fallback (count + 1) when that cell occurs alpha times in the ring. queue (rows, window,
+    2), qlen / count (rows,) int, fallback (rows,) bool, pos (rows, 2), act / new_cell (rows,)."""
+    window = queue.shape[1]
+    leave = act & fallback & new_cell
+    fallback[leave] = False
+    qlen[leave] = 0
+    q = act & ~fallback
+    queue[np.flatnonzero(q), qlen[q] % window] = pos[q]
+    qlen[q] += 1
+    filled = np.arange(window)[None, :] < np.minimum(qlen, window)[:, None]
+    same = np.all(queue == pos[:, None, :], axis=-1) & filled
+    trig = q & (same.sum(axis=1) >= alpha)
+    count[trig] += 1
+    fallback |= trig
+
+
 class LoopGuard(Policy):
     """Any policy under loop detection: `LoopGuard(policy)` is itself a Policy, `loops()` gives
     the triggers per episode. Optional by construction: the paper wraps its networks for static
@@ -136,20 +157,7 @@ class LoopGuard(Policy):
         act, pos, rows = obs.active, obs.positions, self.rows
         new_cell = ~self.visited[rows, pos[:, 1], pos[:, 0]]
         self.visited[rows[act], pos[act, 1], pos[act, 0]] = True
-        # Leaving the fallback: the last move reached an unvisited cell.
-        leave = act & self.fallback & new_cell
-        self.fallback[leave] = False
-        self.qlen[leave] = 0
-        # Queue the position (ring buffer) for episodes under the wrapped policy.
-        q = act & ~self.fallback
-        slot = self.qlen[q] % self.window
-        self.queue[rows[q], slot] = pos[q]
-        self.qlen[q] += 1
-        filled = np.arange(self.window)[None, :] < np.minimum(self.qlen, self.window)[:, None]
-        same = np.all(self.queue == pos[:, None, :], axis=-1) & filled
-        trig = q & (same.sum(axis=1) >= self.alpha)
-        self.count[trig] += 1
-        self.fallback |= trig
+        queue_step(self.queue, self.qlen, self.fallback, self.count, pos, act, new_cell, self.alpha)
         fb = act & self.fallback
         if fb.any():
             a[fb] = vote(pos[fb], self.visited[fb], self.rng)

@@ -118,28 +118,17 @@ class AgentLoops:
         self.visited = np.zeros((n, cfg.height, cfg.width), bool)
         self.fallback = np.zeros(n * k, bool)
         self.count = np.zeros(n * k, np.int64)
-        self.rows = np.arange(n * k)
         self.episode = np.repeat(np.arange(n), k)
 
     def __call__(self, prefs: np.ndarray, positions: np.ndarray, active: np.ndarray) -> np.ndarray:
         """prefs (n, N, A) -> the same with each agent in the fallback preferring its vote."""
-        from ..loops import vote
+        from ..loops import queue_step, vote
 
         pos = np.asarray(positions, np.int64).reshape(-1, 2)
-        act, rows, e = np.repeat(np.asarray(active, bool), self.k), self.rows, self.episode
+        act, e = np.repeat(np.asarray(active, bool), self.k), self.episode
         new_cell = ~self.visited[e, pos[:, 1], pos[:, 0]]
         self.visited[e[act], pos[act, 1], pos[act, 0]] = True
-        leave = act & self.fallback & new_cell
-        self.fallback[leave] = False
-        self.qlen[leave] = 0
-        q = act & ~self.fallback
-        self.queue[rows[q], self.qlen[q] % self.window] = pos[q]
-        self.qlen[q] += 1
-        filled = np.arange(self.window)[None, :] < np.minimum(self.qlen, self.window)[:, None]
-        same = np.all(self.queue == pos[:, None, :], axis=-1) & filled
-        trig = q & (same.sum(axis=1) >= self.alpha)
-        self.count[trig] += 1
-        self.fallback |= trig
+        queue_step(self.queue, self.qlen, self.fallback, self.count, pos, act, new_cell, self.alpha)
         fb = np.flatnonzero(act & self.fallback)
         if fb.size == 0:
             return prefs
