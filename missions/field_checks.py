@@ -30,7 +30,10 @@ import numpy as np
 def _tlog_messages(path: Path, kinds: set[str]) -> list[Any]:
     from pymavlink import mavutil
 
-    conn = mavutil.mavlink_connection(str(path), dialect="common")
+    # the default dialect (ardupilotmega, a superset of common): `dialect=` would call
+    # mavutil.set_dialect, which changes every later connection of this process (a test's
+    # ground station then no longer decodes ArduPilot's EKF_STATUS_REPORT)
+    conn = mavutil.mavlink_connection(str(path))
     out = []
     try:
         while True:
