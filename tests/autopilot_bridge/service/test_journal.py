@@ -95,7 +95,7 @@ def test_a_journal_with_altitude_levels_reloads_the_level_it_flies(tmp_path: Pat
     """The same with altitude levels (10 x 10 / 3, L = 3: the soft-evidence belief): the journal
     holds the level of the next move, so a resumed search rejoins at its height."""
     fresh, log = _journal_reloads_exactly(tmp_path, GridConfig(width=10, height=10, n_targets=3, levels=3), 1,
-                                          27100, 27110)
+                                          28300, 28310)  # 27100-27199: the video tests
     assert fresh.height.level == log.levels_flown[4] == 2, (fresh.height.level, log.levels_flown)
 
 
