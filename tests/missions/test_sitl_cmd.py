@@ -37,7 +37,8 @@ def test_sitl_field_renders_a_real_field_and_names_it_for_the_companion(tmp_path
     from missions.fieldfile import read_field
 
     real = Path(__file__).parents[2] / "examples" / "fields" / "out" / "l_paddock_30deg" / "field.json"
-    r = runner.invoke(app, ["sitl", "--instance", "34", "--physics", "kinematic", "--speedup", "0", "--duration", "0.5",
+    # instance 38: 34 is the refusal test's, the camera source test's and a fleet test's (33-34)
+    r = runner.invoke(app, ["sitl", "--instance", "38", "--physics", "kinematic", "--speedup", "0", "--duration", "0.5",
                             "--field", str(real), "--width", "3", "--field-out", str(tmp_path / "f.json")])
     assert r.exit_code == 0, r.output
     assert "25 x 24 cells" in r.output and "heading 30.00 deg" in r.output
